@@ -1,0 +1,18 @@
+//! cohortforge: generative models of anatomical shape served as virtual cohorts.
+//!
+//! Layers, each using only the ones listed below it (checked by `tests/it/architecture.rs`):
+
+/// HTTP routes, handlers, auth, problem+json errors and the OpenAPI document.
+pub mod api;
+/// Command-line interface: the server and the offline commands.
+pub mod cli;
+/// Service configuration from flags and `COHORTFORGE_*` environment variables.
+pub mod config;
+/// SQLite repositories for datasets, meshes (and later jobs, models, cohorts).
+pub mod store;
+/// Distances, biomarkers and clinical acceptance (pure).
+pub mod eval;
+/// Rigid registration, k-d tree queries, PCA and other shape geometry (pure).
+pub mod geometry;
+/// Triangle meshes: formats, validation, measures and phantoms (pure).
+pub mod mesh;
