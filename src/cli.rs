@@ -1,1 +1,128 @@
-//! CLI.
+//! Command-line interface: `cohortforge` serves the API; subcommands run offline tasks.
+
+use std::path::{Path, PathBuf};
+
+use clap::{Parser, Subcommand};
+use tokio_util::sync::CancellationToken;
+
+use crate::config::Config;
+use crate::mesh::{Format, io, phantom};
+use crate::store::Store;
+
+/// Generative models of anatomical shape, served as virtual cohorts.
+#[derive(Parser, Debug)]
+#[command(name = "cohortforge", version, args_conflicts_with_subcommands = true)]
+pub struct Cli {
+    /// Server settings (used when no subcommand is given).
+    #[command(flatten)]
+    pub serve: Config,
+    /// Offline task to run instead of serving.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// Offline tasks.
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Serve the HTTP API (the default).
+    Serve(Config),
+    /// Write synthetic phantom meshes with known ground truth, plus params.csv.
+    Phantoms(PhantomArgs),
+    /// Print the OpenAPI document as JSON.
+    Openapi,
+}
+
+/// Arguments of `cohortforge phantoms`.
+#[derive(clap::Args, Debug)]
+pub struct PhantomArgs {
+    /// Shape family: `lv` (left-ventricle myocardium) or `liver`.
+    #[arg(long)]
+    pub family: phantom::Family,
+    /// Number of subjects.
+    #[arg(long, default_value_t = 20)]
+    pub count: usize,
+    /// Random seed; the same seed writes the same files.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Output directory (created when missing).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Mesh file format: obj, stl, ply or vtk.
+    #[arg(long, default_value = "obj", value_parser = parse_format)]
+    pub format: Format,
+}
+
+fn parse_format(s: &str) -> Result<Format, String> {
+    Format::from_name(s).ok_or_else(|| format!("unknown format '{s}': use obj, stl, ply or vtk"))
+}
+
+/// Outcome of a CLI command; an error is one line of text for the user.
+pub type CliResult = Result<(), String>;
+
+/// Runs the command line.
+pub fn run(cli: Cli) -> CliResult {
+    match cli.command {
+        None => serve(cli.serve),
+        Some(Command::Serve(config)) => serve(config),
+        Some(Command::Phantoms(args)) => write_phantoms(&args),
+        Some(Command::Openapi) => {
+            let json = crate::api::openapi()
+                .to_pretty_json()
+                .map_err(|e| e.to_string())?;
+            println!("{json}");
+            Ok(())
+        }
+    }
+}
+
+
+fn serve(config: Config) -> CliResult {
+    config.validate().map_err(|e| e.to_string())?;
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .map_err(|e| e.to_string())?;
+    runtime.block_on(async move {
+        let store = Store::open(&config.database)
+            .await
+            .map_err(|e| format!("cannot open database {}: {e}", config.database.display()))?;
+        let listener = tokio::net::TcpListener::bind(config.bind)
+            .await
+            .map_err(|e| format!("cannot listen on {}: {e}", config.bind))?;
+        tracing::info!(bind = %config.bind, database = %config.database.display(), "cohortforge listening");
+        let shutdown = CancellationToken::new();
+        let on_signal = shutdown.clone();
+        tokio::spawn(async move {
+            let _ = tokio::signal::ctrl_c().await;
+            tracing::info!("shutting down");
+            on_signal.cancel();
+        });
+        crate::api::serve(listener, &config, store.clone(), shutdown)
+            .await
+            .map_err(|e| e.to_string())?;
+        store.close().await;
+        Ok(())
+    })
+}
+
+fn write_phantoms(args: &PhantomArgs) -> CliResult {
+    let phantoms = phantom::generate(args.family, args.count, args.seed);
+    std::fs::create_dir_all(&args.out).map_err(|e| io_error(&args.out, e))?;
+    for p in &phantoms {
+        let path = args.out.join(format!("{}.{}", p.name, args.format.extension()));
+        std::fs::write(&path, io::write(&p.mesh, args.format)).map_err(|e| io_error(&path, e))?;
+    }
+    let csv = args.out.join("params.csv");
+    std::fs::write(&csv, phantom::params_csv(&phantoms)).map_err(|e| io_error(&csv, e))?;
+    println!(
+        "wrote {} {} phantoms and params.csv to {}",
+        phantoms.len(),
+        args.family,
+        args.out.display()
+    );
+    Ok(())
+}
+
+fn io_error(path: &Path, e: std::io::Error) -> String {
+    format!("{}: {e}", path.display())
+}

@@ -1,1 +1,136 @@
-//! Configuration.
+//! Service configuration: one struct, filled from flags or `COHORTFORGE_*` environment
+//! variables, validated once at start.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+
+/// Configuration of the HTTP service. Each flag also reads an environment variable.
+#[derive(clap::Args, Debug, Clone)]
+pub struct Config {
+    /// Address and port to listen on.
+    #[arg(long, env = "COHORTFORGE_BIND", default_value = "127.0.0.1:8080")]
+    pub bind: SocketAddr,
+
+    /// SQLite database file; created with its tables when missing.
+    #[arg(long, env = "COHORTFORGE_DATABASE", default_value = "cohortforge.db")]
+    pub database: PathBuf,
+
+    /// Largest accepted request body in bytes (uploads included).
+    #[arg(long, env = "COHORTFORGE_MAX_BODY_BYTES", default_value_t = 256 * 1024 * 1024)]
+    pub max_body_bytes: usize,
+
+    /// Largest accepted mesh, in vertices (after parsing, before welding).
+    #[arg(long, env = "COHORTFORGE_MAX_VERTICES", default_value_t = 1_000_000)]
+    pub max_vertices: usize,
+
+    /// Number of worker threads that run training jobs.
+    #[arg(long, env = "COHORTFORGE_WORKERS", default_value_t = 1)]
+    pub workers: usize,
+
+    /// Bearer token that may do everything. With no token configured, /v1 is open.
+    #[arg(long, env = "COHORTFORGE_ADMIN_TOKEN", hide_env_values = true)]
+    pub admin_token: Option<String>,
+
+    /// Bearer token that may only read (GET and HEAD requests).
+    #[arg(long, env = "COHORTFORGE_READ_TOKEN", hide_env_values = true)]
+    pub read_token: Option<String>,
+
+    /// Allow binding to a non-loopback address without any token configured.
+    #[arg(long, env = "COHORTFORGE_INSECURE")]
+    pub insecure: bool,
+}
+
+/// A configuration that cannot start the service.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// Serving an open API to the network needs an explicit opt-in.
+    #[error(
+        "refusing to listen on {0} without a token: set --admin-token (COHORTFORGE_ADMIN_TOKEN) \
+         or pass --insecure to serve an open API on a non-loopback address"
+    )]
+    OpenNonLoopback(SocketAddr),
+    /// A read token alone would lock every client out of writes.
+    #[error("--read-token needs --admin-token as well, otherwise nobody could write")]
+    ReadTokenWithoutAdmin,
+    /// Tokens must be long enough to resist guessing.
+    #[error("{0} must be at least {MIN_TOKEN_CHARS} characters long")]
+    TokenTooShort(&'static str),
+    /// Zero is not a usable limit.
+    #[error("{0} must be greater than zero")]
+    ZeroLimit(&'static str),
+}
+
+/// Shortest accepted bearer token.
+pub const MIN_TOKEN_CHARS: usize = 16;
+
+impl Config {
+    /// A configuration for tests and embedding: loopback, given database, no tokens.
+    pub fn local(database: PathBuf) -> Self {
+        Self {
+            bind: SocketAddr::from(([127, 0, 0, 1], 0)),
+            database,
+            max_body_bytes: 256 * 1024 * 1024,
+            max_vertices: 1_000_000,
+            workers: 1,
+            admin_token: None,
+            read_token: None,
+            insecure: false,
+        }
+    }
+
+    /// Checks that the configuration is safe and usable.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.max_body_bytes == 0 {
+            return Err(ConfigError::ZeroLimit("--max-body-bytes"));
+        }
+        if self.max_vertices == 0 {
+            return Err(ConfigError::ZeroLimit("--max-vertices"));
+        }
+        if self.workers == 0 {
+            return Err(ConfigError::ZeroLimit("--workers"));
+        }
+        for (flag, token) in [
+            ("--admin-token", &self.admin_token),
+            ("--read-token", &self.read_token),
+        ] {
+            if token.as_ref().is_some_and(|t| t.chars().count() < MIN_TOKEN_CHARS) {
+                return Err(ConfigError::TokenTooShort(flag));
+            }
+        }
+        if self.read_token.is_some() && self.admin_token.is_none() {
+            return Err(ConfigError::ReadTokenWithoutAdmin);
+        }
+        if self.admin_token.is_none() && !self.bind.ip().is_loopback() && !self.insecure {
+            return Err(ConfigError::OpenNonLoopback(self.bind));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn open_service_only_on_loopback() {
+        let mut c = Config::local("x.db".into());
+        assert!(c.validate().is_ok());
+        c.bind = "0.0.0.0:8080".parse().unwrap();
+        assert!(matches!(c.validate(), Err(ConfigError::OpenNonLoopback(_))));
+        c.insecure = true;
+        assert!(c.validate().is_ok());
+        c.insecure = false;
+        c.admin_token = Some("0123456789abcdef".into());
+        assert!(c.validate().is_ok());
+    }
+
+    #[test]
+    fn short_or_lonely_tokens_are_refused() {
+        let mut c = Config::local("x.db".into());
+        c.admin_token = Some("short".into());
+        assert!(matches!(c.validate(), Err(ConfigError::TokenTooShort(_))));
+        c.admin_token = None;
+        c.read_token = Some("0123456789abcdef".into());
+        assert!(matches!(c.validate(), Err(ConfigError::ReadTokenWithoutAdmin)));
+    }
+}

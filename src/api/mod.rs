@@ -1,1 +1,167 @@
-//! HTTP API.
+//! HTTP API: routes, handlers, auth, problem+json errors and the OpenAPI document.
+//!
+//! Every handler is registered once through `utoipa_axum`, so routing and the
+//! documentation cannot drift apart.
+
+pub mod auth;
+mod datasets;
+pub mod error;
+pub mod extract;
+mod meshes;
+mod ops;
+
+use std::sync::Arc;
+
+use axum::Router;
+use axum::extract::DefaultBodyLimit;
+use axum::http::{HeaderName, Request};
+use tokio::net::TcpListener;
+use tokio_util::sync::CancellationToken;
+use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
+use tower_http::trace::TraceLayer;
+use utoipa::OpenApi;
+use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
+use utoipa_axum::router::OpenApiRouter;
+use utoipa_swagger_ui::SwaggerUi;
+
+use crate::config::Config;
+use crate::mesh::io::Limits;
+use crate::mesh::validate::IngestOptions;
+use crate::store::Store;
+use auth::Tokens;
+use error::ApiError;
+
+/// Header carrying the request id, set when the client sends none.
+pub const REQUEST_ID_HEADER: &str = "x-request-id";
+
+/// Shared state of the handlers: cheap to clone.
+#[derive(Clone)]
+pub struct AppState {
+    /// The database.
+    pub store: Store,
+    /// Bearer tokens (none: the API is open).
+    pub tokens: Arc<Tokens>,
+    /// Largest accepted mesh, in vertices.
+    pub max_vertices: usize,
+}
+
+impl AppState {
+    /// State for a configuration and an opened store.
+    pub fn new(config: &Config, store: Store) -> Self {
+        Self {
+            store,
+            tokens: Arc::new(Tokens {
+                admin: config.admin_token.clone(),
+                read: config.read_token.clone(),
+            }),
+            max_vertices: config.max_vertices,
+        }
+    }
+
+    /// Validation options for uploads.
+    pub fn ingest_options(&self) -> IngestOptions {
+        IngestOptions {
+            limits: Limits {
+                max_vertices: self.max_vertices,
+                max_faces: self.max_vertices.saturating_mul(4),
+            },
+            ..IngestOptions::default()
+        }
+    }
+}
+
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "cohortforge",
+        description = "Generative models of anatomical shape from surface meshes, served as \
+                       virtual cohorts for in-silico clinical trials. Errors are \
+                       application/problem+json with a stable `code`.",
+    ),
+    modifiers(&BearerAuth),
+    tags(
+        (name = "datasets", description = "Collections of meshes of one organ"),
+        (name = "meshes", description = "Upload, inspect and download surface meshes"),
+        (name = "ops", description = "Probes"),
+    )
+)]
+struct ApiDoc;
+
+struct BearerAuth;
+
+impl utoipa::Modify for BearerAuth {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        let components = openapi.components.get_or_insert_with(Default::default);
+        components.add_security_scheme(
+            "bearer",
+            SecurityScheme::Http(Http::new(HttpAuthScheme::Bearer)),
+        );
+        openapi.security = Some(vec![utoipa::openapi::security::SecurityRequirement::new(
+            "bearer",
+            Vec::<String>::new(),
+        )]);
+    }
+}
+
+fn api_routes() -> (OpenApiRouter<AppState>, OpenApiRouter<AppState>) {
+    let v1 = OpenApiRouter::new()
+        .merge(datasets::router())
+        .merge(meshes::router());
+    (v1, ops::router())
+}
+
+/// The OpenAPI document of the service.
+pub fn openapi() -> utoipa::openapi::OpenApi {
+    let (v1, ops) = api_routes();
+    let (_, spec) = OpenApiRouter::<AppState>::with_openapi(ApiDoc::openapi())
+        .merge(v1)
+        .merge(ops)
+        .split_for_parts();
+    spec
+}
+
+/// The complete HTTP application.
+pub fn app(state: AppState, max_body_bytes: usize) -> Router {
+    let (v1, ops) = api_routes();
+    let v1 = v1.layer(axum::middleware::from_fn_with_state(
+        state.clone(),
+        auth::require_token,
+    ));
+    let (router, spec) = OpenApiRouter::with_openapi(ApiDoc::openapi())
+        .merge(v1)
+        .merge(ops)
+        .split_for_parts();
+    let request_id = HeaderName::from_static(REQUEST_ID_HEADER);
+    router
+        .merge(SwaggerUi::new("/docs").url("/openapi.json", spec))
+        .fallback(|| async { ApiError::no_route() })
+        .method_not_allowed_fallback(|| async { ApiError::method_not_allowed() })
+        .with_state(state)
+        .layer(DefaultBodyLimit::max(max_body_bytes))
+        .layer(PropagateRequestIdLayer::new(request_id.clone()))
+        .layer(
+            TraceLayer::new_for_http().make_span_with(|request: &Request<_>| {
+                let id = request
+                    .headers()
+                    .get(REQUEST_ID_HEADER)
+                    .and_then(|v| v.to_str().ok())
+                    .unwrap_or("-");
+                tracing::info_span!("request", method = %request.method(), uri = %request.uri(), request_id = %id)
+            }),
+        )
+        .layer(SetRequestIdLayer::new(request_id, MakeRequestUuid))
+}
+
+/// Serves the application on a bound listener until `shutdown` is cancelled.
+pub async fn serve(
+    listener: TcpListener,
+    config: &Config,
+    store: Store,
+    shutdown: CancellationToken,
+) -> std::io::Result<()> {
+    let state = AppState::new(config, store);
+    let app = app(state, config.max_body_bytes);
+    axum::serve(listener, app)
+        .with_graceful_shutdown(async move { shutdown.cancelled().await })
+        .await
+}

@@ -1,1 +1,9 @@
-//! End-to-end tests: one binary, a real server on an ephemeral port.
+//! End-to-end tests: one binary, a real server on an ephemeral port, a temporary database.
+
+mod architecture;
+mod auth;
+mod bad_uploads;
+mod datasets;
+mod meshes;
+mod openapi;
+mod support;

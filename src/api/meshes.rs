@@ -1,0 +1,334 @@
+//! Mesh upload (raw body or multipart), listing, metadata, download and deletion.
+
+use axum::body::Bytes;
+use axum::extract::{FromRequest, Multipart, Request, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
+use utoipa_axum::router::OpenApiRouter;
+use utoipa_axum::routes;
+
+use super::AppState;
+use super::error::{ApiError, Problem};
+use super::extract::{Json, PageQuery, Paginated, Path, Query};
+use crate::mesh::{self, Format};
+use crate::store::meshes::{MeshRecord, NewMesh, format_name};
+
+/// Longest mesh name, in characters.
+const MAX_NAME_CHARS: usize = 200;
+
+pub(super) fn router() -> OpenApiRouter<AppState> {
+    OpenApiRouter::new()
+        .routes(routes!(upload_meshes, list_meshes))
+        .routes(routes!(get_mesh, delete_mesh))
+        .routes(routes!(download_mesh))
+}
+
+/// Query of a mesh upload.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+#[serde(deny_unknown_fields)]
+pub struct UploadQuery {
+    /// File format when the Content-Type does not say it: `obj`, `stl`, `ply` or `vtk`.
+    pub format: Option<String>,
+    /// Name of the mesh (raw uploads; multipart parts use their file names).
+    pub name: Option<String>,
+}
+
+/// Response of a multipart upload.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct UploadedMeshes {
+    /// The stored meshes, in the order of the parts.
+    pub meshes: Vec<MeshRecord>,
+}
+
+/// Query of a mesh download.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+#[serde(deny_unknown_fields)]
+pub struct DownloadQuery {
+    /// Output format: `obj` (default), `stl` (binary), `ply` (binary) or `vtk` (legacy ASCII).
+    pub format: Option<String>,
+}
+
+/// A file of the request before parsing.
+struct UploadedFile {
+    name: String,
+    format: Format,
+    bytes: Bytes,
+}
+
+fn parse_format(field: &str, name: &str) -> Result<Format, ApiError> {
+    Format::from_name(name).ok_or_else(|| {
+        ApiError::new(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "mesh.unsupported_format",
+            format!("{field} '{name}' is not a supported mesh format; use obj, stl, ply or vtk"),
+        )
+        .with("field", field)
+    })
+}
+
+fn content_type(headers: &HeaderMap) -> Option<&str> {
+    headers.get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok())
+}
+
+fn unsupported_content_type(found: Option<&str>) -> ApiError {
+    ApiError::new(
+        StatusCode::UNSUPPORTED_MEDIA_TYPE,
+        "mesh.unsupported_format",
+        format!(
+            "cannot tell the mesh format from Content-Type {}; send model/obj, model/stl, \
+             application/x-ply or application/vnd.vtk, add ?format=obj|stl|ply|vtk, or upload \
+             multipart/form-data",
+            found.map_or("(none)".to_owned(), |c| format!("'{c}'"))
+        ),
+    )
+}
+
+fn check_name(name: &str) -> Result<(), ApiError> {
+    super::datasets::check_label("name", name, MAX_NAME_CHARS)
+}
+
+/// Upload one mesh (raw body) or many (multipart `file` parts), all or nothing.
+#[utoipa::path(
+    post, path = "/v1/datasets/{id}/meshes", tag = "meshes",
+    params(("id" = String, Path, description = "Dataset id"), UploadQuery),
+    request_body(
+        description = "A mesh file (OBJ, STL ASCII/binary, PLY ASCII/binary little-endian, \
+                       legacy ASCII VTK polydata), or multipart/form-data with one `file` part per mesh",
+        content(
+            (Vec<u8> = "model/obj"), (Vec<u8> = "model/stl"),
+            (Vec<u8> = "application/x-ply"), (Vec<u8> = "application/vnd.vtk"),
+            (Vec<u8> = "multipart/form-data"),
+        )
+    ),
+    responses(
+        (status = 201, description = "Stored: the mesh record (raw upload) or {meshes: [...]} (multipart)", body = MeshRecord),
+        (status = 404, description = "No such dataset", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The dataset already holds this geometry", body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "Body or mesh too large", body = Problem, content_type = "application/problem+json"),
+        (status = 415, description = "Unknown format", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "The file is not a usable mesh", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn upload_meshes(
+    State(state): State<AppState>,
+    Path(dataset_id): Path<String>,
+    Query(query): Query<UploadQuery>,
+    request: Request,
+) -> Result<Response, ApiError> {
+    state.store.dataset(&dataset_id).await?;
+    let ct = content_type(request.headers()).map(str::to_owned);
+    let multipart = ct
+        .as_deref()
+        .is_some_and(|c| c.to_ascii_lowercase().starts_with("multipart/form-data"));
+    if multipart {
+        let files = read_multipart(&state, &query, request).await?;
+        let records = store_files(&state, &dataset_id, files).await?;
+        return Ok((StatusCode::CREATED, Json(UploadedMeshes { meshes: records })).into_response());
+    }
+    let format = match (&query.format, ct.as_deref()) {
+        (Some(f), _) => parse_format("format", f)?,
+        (None, Some(c)) => Format::from_content_type(c).ok_or_else(|| unsupported_content_type(Some(c)))?,
+        (None, None) => return Err(unsupported_content_type(None)),
+    };
+    let bytes = Bytes::from_request(request, &state).await?;
+    let name = query.name.clone().unwrap_or_default();
+    if !name.is_empty() {
+        check_name(&name)?;
+    }
+    let file = UploadedFile { name, format, bytes };
+    let mut records = store_files(&state, &dataset_id, vec![file]).await?;
+    let record = records
+        .pop()
+        .ok_or_else(|| ApiError::internal("the upload stored no mesh"))?;
+    let mut headers = HeaderMap::new();
+    if let Ok(location) = HeaderValue::from_str(&format!("/v1/meshes/{}", record.id)) {
+        headers.insert(header::LOCATION, location);
+    }
+    Ok((StatusCode::CREATED, headers, Json(record)).into_response())
+}
+
+async fn read_multipart(
+    state: &AppState,
+    query: &UploadQuery,
+    request: Request,
+) -> Result<Vec<UploadedFile>, ApiError> {
+    let default_format = query.format.as_deref().map(|f| parse_format("format", f)).transpose()?;
+    let mut multipart = Multipart::from_request(request, state)
+        .await
+        .map_err(|r| ApiError::new(StatusCode::BAD_REQUEST, "request.unreadable_body", r.body_text()))?;
+    let mut files = Vec::new();
+    while let Some(field) = multipart.next_field().await? {
+        let part = files.len();
+        let field_name = field.name().unwrap_or_default().to_owned();
+        if !matches!(field_name.as_str(), "file" | "files" | "file[]" | "files[]") {
+            return Err(ApiError::new(
+                StatusCode::UNPROCESSABLE_ENTITY,
+                "request.unexpected_part",
+                format!("multipart part '{field_name}' is not expected; send each mesh as a part named 'file'"),
+            ));
+        }
+        let file_name = field.file_name().unwrap_or_default().to_owned();
+        let format = Format::from_file_name(&file_name)
+            .or_else(|| field.content_type().and_then(Format::from_content_type))
+            .or(default_format)
+            .ok_or_else(|| {
+                unsupported_content_type(field.content_type())
+                    .with("part", part)
+                    .with("filename", file_name.clone())
+            })?;
+        let name = file_stem(&file_name);
+        if !name.is_empty() {
+            check_name(&name)?;
+        }
+        let bytes = field.bytes().await?;
+        files.push(UploadedFile { name, format, bytes });
+    }
+    if files.is_empty() {
+        return Err(ApiError::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "request.no_files",
+            "the multipart body holds no 'file' part; attach at least one mesh file",
+        ));
+    }
+    Ok(files)
+}
+
+fn file_stem(file_name: &str) -> String {
+    let base = file_name.rsplit(['/', '\\']).next().unwrap_or_default();
+    match base.rsplit_once('.') {
+        Some((stem, _)) if !stem.is_empty() => stem.to_owned(),
+        _ => base.to_owned(),
+    }
+}
+
+/// Parses and validates every file off the async runtime, then stores them in one transaction.
+async fn store_files(
+    state: &AppState,
+    dataset_id: &str,
+    files: Vec<UploadedFile>,
+) -> Result<Vec<MeshRecord>, ApiError> {
+    let options = state.ingest_options();
+    let count = files.len();
+    let parsed = tokio::task::spawn_blocking(move || {
+        files
+            .into_iter()
+            .enumerate()
+            .map(|(part, file)| {
+                let ingested = mesh::validate::ingest(&file.bytes, file.format, &options).map_err(|e| {
+                    let err = ApiError::from(e);
+                    if count > 1 { err.with("part", part).with("filename", file.name.clone()) } else { err }
+                })?;
+                let name = if file.name.is_empty() {
+                    format!("mesh_{}", &mesh::codec::sha256_hex(&ingested.mesh)[..12])
+                } else {
+                    file.name
+                };
+                Ok(NewMesh { name, source_format: format_name(file.format), ingested, source: None })
+            })
+            .collect::<Result<Vec<_>, ApiError>>()
+    })
+    .await
+    .map_err(|e| ApiError::internal(e.to_string()))??;
+    Ok(state.store.insert_meshes(dataset_id, parsed).await?)
+}
+
+/// List a dataset's meshes in upload order.
+#[utoipa::path(
+    get, path = "/v1/datasets/{id}/meshes", tag = "meshes",
+    params(("id" = String, Path, description = "Dataset id"), PageQuery),
+    responses(
+        (status = 200, description = "A page of meshes", body = Paginated<MeshRecord>),
+        (status = 404, description = "No such dataset", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn list_meshes(
+    State(state): State<AppState>,
+    Path(dataset_id): Path<String>,
+    Query(query): Query<PageQuery>,
+) -> Result<Json<Paginated<MeshRecord>>, ApiError> {
+    let page = query.page()?;
+    let (items, total) = state.store.meshes(&dataset_id, page).await?;
+    Ok(Json(Paginated::new(items, total, page)))
+}
+
+/// Get a mesh's metadata.
+#[utoipa::path(
+    get, path = "/v1/meshes/{id}", tag = "meshes",
+    params(("id" = String, Path, description = "Mesh id")),
+    responses(
+        (status = 200, description = "The mesh record", body = MeshRecord),
+        (status = 404, description = "No such mesh", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn get_mesh(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Json<MeshRecord>, ApiError> {
+    Ok(Json(state.store.mesh(&id).await?))
+}
+
+/// Delete a mesh.
+#[utoipa::path(
+    delete, path = "/v1/meshes/{id}", tag = "meshes",
+    params(("id" = String, Path, description = "Mesh id")),
+    responses(
+        (status = 204, description = "Deleted"),
+        (status = 404, description = "No such mesh", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn delete_mesh(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<StatusCode, ApiError> {
+    state.store.delete_mesh(&id).await?;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+/// Download a mesh in any supported format.
+#[utoipa::path(
+    get, path = "/v1/meshes/{id}/file", tag = "meshes",
+    params(("id" = String, Path, description = "Mesh id"), DownloadQuery),
+    responses(
+        (status = 200, description = "The mesh file", content(
+            (Vec<u8> = "model/obj"), (Vec<u8> = "model/stl"),
+            (Vec<u8> = "application/x-ply"), (Vec<u8> = "application/vnd.vtk"))),
+        (status = 404, description = "No such mesh", body = Problem, content_type = "application/problem+json"),
+        (status = 415, description = "Unknown format", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn download_mesh(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    Query(query): Query<DownloadQuery>,
+) -> Result<Response, ApiError> {
+    let format = match &query.format {
+        Some(f) => parse_format("format", f)?,
+        None => Format::Obj,
+    };
+    let record = state.store.mesh(&id).await?;
+    let geometry = state.store.mesh_geometry(&id).await?;
+    let bytes = tokio::task::spawn_blocking(move || mesh::io::write(&geometry, format))
+        .await
+        .map_err(|e| ApiError::internal(e.to_string()))?;
+    Ok(mesh_file_response(&record.name, format, bytes))
+}
+
+/// A mesh file as an attachment named after the mesh.
+pub(crate) fn mesh_file_response(name: &str, format: Format, bytes: Vec<u8>) -> Response {
+    let safe: String = name
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() || "-_.".contains(c) { c } else { '_' })
+        .collect();
+    let disposition = format!("attachment; filename=\"{safe}.{}\"", format.extension());
+    let mut response = bytes.into_response();
+    let headers = response.headers_mut();
+    headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(format.content_type()));
+    if let Ok(value) = HeaderValue::from_str(&disposition) {
+        headers.insert(header::CONTENT_DISPOSITION, value);
+    }
+    response
+}

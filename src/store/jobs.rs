@@ -1,0 +1,388 @@
+//! Durable fit jobs: submission, atomic claiming with leases, heartbeats, completion.
+//!
+//! A worker claims the oldest queued job and holds a lease it renews with every progress
+//! write. A job whose lease expired (its worker died) is requeued, or failed once it has
+//! used all its attempts.
+
+use serde::{Deserialize, Serialize};
+use sqlx::Row;
+use sqlx::sqlite::SqliteRow;
+use utoipa::ToSchema;
+
+use super::{Page, Store, StoreError, new_id, now};
+
+/// Where a job is in its life.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum JobStatus {
+    /// Waiting for a worker.
+    Queued,
+    /// A worker holds it.
+    Running,
+    /// Finished with a model.
+    Succeeded,
+    /// Stopped with an error.
+    Failed,
+    /// Stopped on request.
+    Cancelled,
+}
+
+impl JobStatus {
+    /// The status as stored.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Queued => "queued",
+            Self::Running => "running",
+            Self::Succeeded => "succeeded",
+            Self::Failed => "failed",
+            Self::Cancelled => "cancelled",
+        }
+    }
+
+    fn parse(s: &str) -> Result<Self, StoreError> {
+        Ok(match s {
+            "queued" => Self::Queued,
+            "running" => Self::Running,
+            "succeeded" => Self::Succeeded,
+            "failed" => Self::Failed,
+            "cancelled" => Self::Cancelled,
+            other => return Err(StoreError::Corrupt(format!("job status {other}"))),
+        })
+    }
+
+    /// Whether the job will not change any more.
+    pub fn is_final(self) -> bool {
+        matches!(self, Self::Succeeded | Self::Failed | Self::Cancelled)
+    }
+}
+
+/// Progress of a running job.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, ToSchema)]
+pub struct JobProgress {
+    /// Current stage, e.g. `alignment`, `pca`, `evaluation`.
+    pub stage: String,
+    /// Steps done in this stage.
+    pub step: u64,
+    /// Steps in this stage.
+    pub total: u64,
+    /// Fraction of the whole job done, 0–1.
+    pub fraction: f64,
+    /// What is happening, in words.
+    pub message: String,
+    /// Latest training loss, when the stage has one.
+    pub loss: Option<f64>,
+}
+
+/// A fit job as stored.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct Job {
+    /// Identifier.
+    pub id: String,
+    /// Dataset the model is fitted to.
+    pub dataset_id: String,
+    /// Model type, e.g. `rsmp`.
+    pub model_type: String,
+    /// Parameters with defaults filled in.
+    #[schema(value_type = Object)]
+    pub params: serde_json::Value,
+    /// Random seed.
+    pub seed: u64,
+    /// Share of the dataset's meshes held out for evaluation.
+    pub holdout_fraction: f64,
+    /// Where the job is.
+    pub status: JobStatus,
+    /// Progress of the current stage.
+    pub progress: JobProgress,
+    /// The model, once succeeded.
+    pub model_id: Option<String>,
+    /// Why the job failed.
+    pub error: Option<String>,
+    /// Times a worker started it.
+    pub attempts: i64,
+    /// Submission time (RFC 3339, UTC).
+    pub created_at: String,
+    /// First start (RFC 3339, UTC).
+    pub started_at: Option<String>,
+    /// End time (RFC 3339, UTC).
+    pub finished_at: Option<String>,
+}
+
+/// A job to submit.
+#[derive(Debug, Clone)]
+pub struct NewJob {
+    /// Dataset to fit.
+    pub dataset_id: String,
+    /// Model type.
+    pub model_type: String,
+    /// Validated parameters with defaults filled in.
+    pub params: serde_json::Value,
+    /// Random seed.
+    pub seed: u64,
+    /// Share of meshes held out.
+    pub holdout_fraction: f64,
+    /// Times a worker may start the job before it is failed.
+    pub max_attempts: i64,
+    /// Client key that makes a retried submission return the same job.
+    pub idempotency_key: Option<String>,
+    /// SHA-256 of the canonical request, to detect a key reused for another request.
+    pub request_hash: String,
+}
+
+/// What a heartbeat tells the worker.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lease {
+    /// Keep going.
+    Held,
+    /// Cancellation was requested: stop at this checkpoint.
+    CancelRequested,
+    /// The lease was lost (expired and taken over): stop without writing.
+    Lost,
+}
+
+const SELECT_JOB: &str = "SELECT id, dataset_id, model_type, params, seed, holdout_fraction, \
+     status, progress, model_id, error, attempts, created_at, started_at, finished_at FROM jobs";
+
+fn corrupt(column: &str, e: impl std::fmt::Display) -> StoreError {
+    StoreError::Corrupt(format!("jobs.{column}: {e}"))
+}
+
+fn job(row: &SqliteRow) -> Result<Job, StoreError> {
+    let params: String = row.try_get("params")?;
+    let progress: String = row.try_get("progress")?;
+    let seed: i64 = row.try_get("seed")?;
+    Ok(Job {
+        id: row.try_get("id")?,
+        dataset_id: row.try_get("dataset_id")?,
+        model_type: row.try_get("model_type")?,
+        params: serde_json::from_str(&params).map_err(|e| corrupt("params", e))?,
+        seed: seed as u64,
+        holdout_fraction: row.try_get("holdout_fraction")?,
+        status: JobStatus::parse(&row.try_get::<String, _>("status")?)?,
+        progress: serde_json::from_str(&progress).map_err(|e| corrupt("progress", e))?,
+        model_id: row.try_get("model_id")?,
+        error: row.try_get("error")?,
+        attempts: row.try_get("attempts")?,
+        created_at: row.try_get("created_at")?,
+        started_at: row.try_get("started_at")?,
+        finished_at: row.try_get("finished_at")?,
+    })
+}
+
+/// Unix time in milliseconds.
+pub(crate) fn unix_ms() -> i64 {
+    chrono::Utc::now().timestamp_millis()
+}
+
+impl Store {
+    /// Queues a job. With an idempotency key already used for the same request, returns the
+    /// existing job and `false`; for another request, [`StoreError::IdempotencyMismatch`].
+    pub async fn submit_job(&self, new: NewJob) -> Result<(Job, bool), StoreError> {
+        let mut tx = self.write.begin().await?;
+        if let Some(key) = &new.idempotency_key {
+            let existing = sqlx::query("SELECT id, request_hash FROM jobs WHERE idempotency_key = ?")
+                .bind(key)
+                .fetch_optional(&mut *tx)
+                .await?;
+            if let Some(row) = existing {
+                let hash: String = row.try_get("request_hash")?;
+                let id: String = row.try_get("id")?;
+                tx.commit().await?;
+                if hash != new.request_hash {
+                    return Err(StoreError::IdempotencyMismatch { existing_id: id });
+                }
+                return Ok((self.job(&id).await?, false));
+            }
+        }
+        let id = new_id();
+        let progress = serde_json::to_string(&JobProgress {
+            stage: "queued".into(),
+            message: "waiting for a worker".into(),
+            ..JobProgress::default()
+        })
+        .map_err(|e| corrupt("progress", e))?;
+        sqlx::query(
+            "INSERT INTO jobs (id, dataset_id, model_type, params, seed, holdout_fraction, status, \
+             progress, max_attempts, idempotency_key, request_hash, created_at, seq) \
+             VALUES (?, ?, ?, ?, ?, ?, 'queued', ?, ?, ?, ?, ?, \
+             (SELECT COALESCE(MAX(seq), 0) + 1 FROM jobs))",
+        )
+        .bind(&id)
+        .bind(&new.dataset_id)
+        .bind(&new.model_type)
+        .bind(new.params.to_string())
+        .bind(new.seed as i64)
+        .bind(new.holdout_fraction)
+        .bind(progress)
+        .bind(new.max_attempts)
+        .bind(&new.idempotency_key)
+        .bind(&new.request_hash)
+        .bind(now())
+        .execute(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok((self.job(&id).await?, true))
+    }
+
+    /// One job.
+    pub async fn job(&self, id: &str) -> Result<Job, StoreError> {
+        let row = sqlx::query(&format!("{SELECT_JOB} WHERE id = ?"))
+            .bind(id)
+            .fetch_optional(&self.read)
+            .await?
+            .ok_or_else(|| StoreError::not_found("job", id))?;
+        job(&row)
+    }
+
+    /// A page of jobs, newest first, optionally of one status.
+    pub async fn jobs(
+        &self,
+        status: Option<JobStatus>,
+        page: Page,
+    ) -> Result<(Vec<Job>, i64), StoreError> {
+        let filter = status.map(JobStatus::as_str);
+        let rows = sqlx::query(&format!(
+            "{SELECT_JOB} WHERE (?1 IS NULL OR status = ?1) ORDER BY seq DESC LIMIT ?2 OFFSET ?3"
+        ))
+        .bind(filter)
+        .bind(page.limit)
+        .bind(page.offset)
+        .fetch_all(&self.read)
+        .await?;
+        let total: i64 =
+            sqlx::query_scalar("SELECT COUNT(*) FROM jobs WHERE (?1 IS NULL OR status = ?1)")
+                .bind(filter)
+                .fetch_one(&self.read)
+                .await?;
+        Ok((rows.iter().map(job).collect::<Result<_, _>>()?, total))
+    }
+
+    /// Requeues running jobs whose lease expired, or fails those out of attempts.
+    /// Returns how many were requeued and how many failed.
+    pub async fn recover_expired_leases(&self) -> Result<(u64, u64), StoreError> {
+        let now_ms = unix_ms();
+        let mut tx = self.write.begin().await?;
+        let failed = sqlx::query(
+            "UPDATE jobs SET status = 'failed', lease_owner = NULL, lease_expires_at = NULL, \
+             finished_at = ?, error = 'the worker running this job stopped ' || attempts || \
+             ' times (process crash or restart); giving up' \
+             WHERE status = 'running' AND lease_expires_at < ? AND attempts >= max_attempts",
+        )
+        .bind(now())
+        .bind(now_ms)
+        .execute(&mut *tx)
+        .await?
+        .rows_affected();
+        let requeued = sqlx::query(
+            "UPDATE jobs SET status = CASE WHEN cancel_requested THEN 'cancelled' ELSE 'queued' END, \
+             lease_owner = NULL, lease_expires_at = NULL \
+             WHERE status = 'running' AND lease_expires_at < ?",
+        )
+        .bind(now_ms)
+        .execute(&mut *tx)
+        .await?
+        .rows_affected();
+        tx.commit().await?;
+        Ok((requeued, failed))
+    }
+
+    /// Atomically claims the oldest queued job for `worker`, with a lease of `lease_ms`.
+    pub async fn claim_job(&self, worker: &str, lease_ms: i64) -> Result<Option<Job>, StoreError> {
+        let row = sqlx::query(
+            "UPDATE jobs SET status = 'running', lease_owner = ?1, lease_expires_at = ?2, \
+             attempts = attempts + 1, started_at = COALESCE(started_at, ?3), \
+             progress = json_object('stage', 'starting', 'step', 0, 'total', 0, 'fraction', 0.0, \
+                                    'message', 'claimed by a worker', 'loss', NULL) \
+             WHERE id = (SELECT id FROM jobs WHERE status = 'queued' ORDER BY seq LIMIT 1) \
+             RETURNING id",
+        )
+        .bind(worker)
+        .bind(unix_ms() + lease_ms)
+        .bind(now())
+        .fetch_optional(&self.write)
+        .await?;
+        match row {
+            Some(row) => Ok(Some(self.job(&row.try_get::<String, _>("id")?).await?)),
+            None => Ok(None),
+        }
+    }
+
+    /// Writes progress and renews the lease; tells the worker whether to go on.
+    pub async fn heartbeat(
+        &self,
+        job_id: &str,
+        worker: &str,
+        progress: &JobProgress,
+        lease_ms: i64,
+    ) -> Result<Lease, StoreError> {
+        let progress = serde_json::to_string(progress).map_err(|e| corrupt("progress", e))?;
+        let row = sqlx::query(
+            "UPDATE jobs SET progress = ?, lease_expires_at = ? \
+             WHERE id = ? AND lease_owner = ? AND status = 'running' RETURNING cancel_requested",
+        )
+        .bind(progress)
+        .bind(unix_ms() + lease_ms)
+        .bind(job_id)
+        .bind(worker)
+        .fetch_optional(&self.write)
+        .await?;
+        Ok(match row {
+            None => Lease::Lost,
+            Some(row) if row.try_get::<bool, _>("cancel_requested")? => Lease::CancelRequested,
+            Some(_) => Lease::Held,
+        })
+    }
+
+    /// Ends a job held by `worker` with a final status. Returns false when the lease was lost.
+    pub async fn finish_job(
+        &self,
+        job_id: &str,
+        worker: &str,
+        status: JobStatus,
+        error: Option<&str>,
+    ) -> Result<bool, StoreError> {
+        let done = sqlx::query(
+            "UPDATE jobs SET status = ?, error = ?, finished_at = ?, lease_owner = NULL, \
+             lease_expires_at = NULL WHERE id = ? AND lease_owner = ? AND status = 'running'",
+        )
+        .bind(status.as_str())
+        .bind(error)
+        .bind(now())
+        .bind(job_id)
+        .bind(worker)
+        .execute(&self.write)
+        .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// Requests cancellation: a queued job is cancelled at once, a running one at its next
+    /// checkpoint. A finished job cannot be cancelled.
+    pub async fn cancel_job(&self, id: &str) -> Result<Job, StoreError> {
+        let current = self.job(id).await?;
+        if current.status.is_final() {
+            return Err(StoreError::JobFinished {
+                id: id.to_owned(),
+                status: current.status.as_str(),
+            });
+        }
+        sqlx::query(
+            "UPDATE jobs SET cancel_requested = 1, \
+             status = CASE WHEN status = 'queued' THEN 'cancelled' ELSE status END, \
+             finished_at = CASE WHEN status = 'queued' THEN ?1 ELSE finished_at END \
+             WHERE id = ?2",
+        )
+        .bind(now())
+        .bind(id)
+        .execute(&self.write)
+        .await?;
+        self.job(id).await
+    }
+
+    /// Test support: makes a running job's lease look expired, as if its worker had died.
+    pub async fn expire_lease(&self, id: &str) -> Result<(), StoreError> {
+        sqlx::query("UPDATE jobs SET lease_expires_at = 0 WHERE id = ? AND status = 'running'")
+            .bind(id)
+            .execute(&self.write)
+            .await?;
+        Ok(())
+    }
+}
