@@ -25,8 +25,20 @@ pub(super) fn read(bytes: &[u8], limits: &Limits) -> Result<Mesh, MeshError> {
         .get(..5)
         .is_some_and(|s| s.eq_ignore_ascii_case(b"solid"));
     // Some binary files start with "solid" too; their float data is never plain text.
-    if starts_solid && (!sized_binary || reject_binary(bytes, Format::Stl).is_ok()) {
+    let is_text = reject_binary(bytes, Format::Stl).is_ok();
+    if starts_solid && (!sized_binary || is_text) {
         read_ascii(bytes, limits)
+    } else if is_text && !sized_binary {
+        let first = bytes.split(|&c| c == b'\n').next().unwrap_or(bytes);
+        Err(MeshError::parse(
+            Format::Stl,
+            "line 1",
+            format!(
+                "the file is text but starts with {} instead of 'solid', so it is neither an \
+                 ASCII nor a binary STL; check that the file really is STL",
+                quote(first.trim_ascii())
+            ),
+        ))
     } else {
         read_binary(bytes, limits)
     }

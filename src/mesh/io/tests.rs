@@ -172,6 +172,9 @@ fn stl_binary_size_and_count_errors() {
     assert_eq!(e.code(), "mesh.too_large");
     assert!(e.to_string().contains("announces 10000000 triangles"), "{e}");
     assert_eq!(fail(b"abc", Format::Stl).code(), "mesh.parse_error");
+    let prose = "This is a plain text file that is long enough to fill a binary STL header. ".repeat(3);
+    let e = fail(prose.as_bytes(), Format::Stl);
+    assert!(e.to_string().contains("starts with 'This is a plain"), "{e}");
     // Random bytes announce a random triangle count: almost surely over the limit.
     let noise = garbage(1000);
     assert!(u32::from_le_bytes([noise[80], noise[81], noise[82], noise[83]]) > 2_000_000);
