@@ -1,7 +1,22 @@
 //! Triangle surface meshes in millimetres: the type, file formats, validation, measures
 //! and synthetic phantoms. Pure: no async, SQL or HTTP.
 
+pub mod adjacency;
+mod clean;
+pub mod codec;
+pub mod error;
+#[cfg(test)]
+pub(crate) mod fixtures;
+pub mod format;
+pub mod io;
+mod manifold;
 pub mod measures;
+mod orient;
+pub mod topology;
+pub mod validate;
+
+pub use error::MeshError;
+pub use format::Format;
 
 /// A triangle surface mesh.
 ///
