@@ -43,6 +43,30 @@ pub struct UploadedMeshes {
     pub meshes: Vec<MeshRecord>,
 }
 
+/// A mesh file in the body (documentation type).
+#[derive(ToSchema)]
+#[schema(value_type = String, format = Binary)]
+pub struct MeshFile(#[allow(dead_code)] Vec<u8>);
+
+/// Multipart body of an upload (documentation type).
+#[derive(ToSchema)]
+pub struct MeshFiles {
+    /// One part per mesh file; the file name gives the mesh name and the format.
+    #[schema(value_type = Vec<String>, format = Binary)]
+    #[allow(dead_code)]
+    file: Vec<Vec<u8>>,
+}
+
+/// Response of an upload: one record for a raw body, `{meshes}` for multipart.
+#[derive(Serialize, ToSchema)]
+#[serde(untagged)]
+pub enum UploadResponse {
+    /// Raw body: the stored mesh.
+    One(MeshRecord),
+    /// Multipart: every stored mesh.
+    Many(UploadedMeshes),
+}
+
 /// Query of a mesh download.
 #[derive(Debug, Deserialize, IntoParams)]
 #[into_params(parameter_in = Query)]
@@ -99,13 +123,13 @@ fn check_name(name: &str) -> Result<(), ApiError> {
         description = "A mesh file (OBJ, STL ASCII/binary, PLY ASCII/binary little-endian, \
                        legacy ASCII VTK polydata), or multipart/form-data with one `file` part per mesh",
         content(
-            (Vec<u8> = "model/obj"), (Vec<u8> = "model/stl"),
-            (Vec<u8> = "application/x-ply"), (Vec<u8> = "application/vnd.vtk"),
-            (Vec<u8> = "multipart/form-data"),
+            (MeshFile = "model/obj"), (MeshFile = "model/stl"),
+            (MeshFile = "application/x-ply"), (MeshFile = "application/vnd.vtk"),
+            (MeshFiles = "multipart/form-data"),
         )
     ),
     responses(
-        (status = 201, description = "Stored: the mesh record (raw upload) or {meshes: [...]} (multipart)", body = MeshRecord),
+        (status = 201, description = "Stored: the mesh record (raw upload) or {meshes: [...]} (multipart)", body = UploadResponse),
         (status = 404, description = "No such dataset", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "The dataset already holds this geometry", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "Body or mesh too large", body = Problem, content_type = "application/problem+json"),
@@ -294,8 +318,8 @@ async fn delete_mesh(
     params(("id" = String, Path, description = "Mesh id"), DownloadQuery),
     responses(
         (status = 200, description = "The mesh file", content(
-            (Vec<u8> = "model/obj"), (Vec<u8> = "model/stl"),
-            (Vec<u8> = "application/x-ply"), (Vec<u8> = "application/vnd.vtk"))),
+            (MeshFile = "model/obj"), (MeshFile = "model/stl"),
+            (MeshFile = "application/x-ply"), (MeshFile = "application/vnd.vtk"))),
         (status = 404, description = "No such mesh", body = Problem, content_type = "application/problem+json"),
         (status = 415, description = "Unknown format", body = Problem, content_type = "application/problem+json"),
     )

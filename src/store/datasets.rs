@@ -3,6 +3,8 @@
 use serde::Serialize;
 use utoipa::ToSchema;
 
+use sqlx::AssertSqlSafe;
+
 use super::{Page, Store, StoreError, new_id, now};
 
 /// A dataset as stored.
@@ -46,7 +48,7 @@ impl Store {
 
     /// One dataset with its mesh count.
     pub async fn dataset(&self, id: &str) -> Result<Dataset, StoreError> {
-        sqlx::query_as::<_, Dataset>(&format!("{SELECT_DATASET} WHERE d.id = ?"))
+        sqlx::query_as::<_, Dataset>(AssertSqlSafe(format!("{SELECT_DATASET} WHERE d.id = ?")))
             .bind(id)
             .fetch_optional(&self.read)
             .await?
@@ -55,9 +57,9 @@ impl Store {
 
     /// A page of datasets, oldest first, and the total count.
     pub async fn datasets(&self, page: Page) -> Result<(Vec<Dataset>, i64), StoreError> {
-        let items = sqlx::query_as::<_, Dataset>(&format!(
+        let items = sqlx::query_as::<_, Dataset>(AssertSqlSafe(format!(
             "{SELECT_DATASET} ORDER BY d.created_at, d.rowid LIMIT ? OFFSET ?"
-        ))
+        )))
         .bind(page.limit)
         .bind(page.offset)
         .fetch_all(&self.read)

@@ -9,6 +9,8 @@ use sqlx::Row;
 use sqlx::sqlite::SqliteRow;
 use utoipa::ToSchema;
 
+use sqlx::AssertSqlSafe;
+
 use super::{Page, Store, StoreError, new_id, now};
 
 /// Where a job is in its life.
@@ -225,7 +227,7 @@ impl Store {
 
     /// One job.
     pub async fn job(&self, id: &str) -> Result<Job, StoreError> {
-        let row = sqlx::query(&format!("{SELECT_JOB} WHERE id = ?"))
+        let row = sqlx::query(AssertSqlSafe(format!("{SELECT_JOB} WHERE id = ?")))
             .bind(id)
             .fetch_optional(&self.read)
             .await?
@@ -240,9 +242,9 @@ impl Store {
         page: Page,
     ) -> Result<(Vec<Job>, i64), StoreError> {
         let filter = status.map(JobStatus::as_str);
-        let rows = sqlx::query(&format!(
+        let rows = sqlx::query(AssertSqlSafe(format!(
             "{SELECT_JOB} WHERE (?1 IS NULL OR status = ?1) ORDER BY seq DESC LIMIT ?2 OFFSET ?3"
-        ))
+        )))
         .bind(filter)
         .bind(page.limit)
         .bind(page.offset)

@@ -4,6 +4,8 @@ use serde::Serialize;
 use sqlx::{Row, Sqlite, Transaction};
 use utoipa::ToSchema;
 
+use sqlx::AssertSqlSafe;
+
 use super::{Page, Store, StoreError, new_id, now};
 use crate::mesh::validate::Ingested;
 use crate::mesh::{Format, Mesh, codec};
@@ -147,7 +149,7 @@ impl Store {
 
     /// One mesh's metadata.
     pub async fn mesh(&self, id: &str) -> Result<MeshRecord, StoreError> {
-        let row = sqlx::query(&format!("{SELECT_MESH} WHERE id = ?"))
+        let row = sqlx::query(AssertSqlSafe(format!("{SELECT_MESH} WHERE id = ?")))
             .bind(id)
             .fetch_optional(&self.read)
             .await?
@@ -172,9 +174,9 @@ impl Store {
         page: Page,
     ) -> Result<(Vec<MeshRecord>, i64), StoreError> {
         self.dataset(dataset_id).await?;
-        let rows = sqlx::query(&format!(
+        let rows = sqlx::query(AssertSqlSafe(format!(
             "{SELECT_MESH} WHERE dataset_id = ? ORDER BY seq LIMIT ? OFFSET ?"
-        ))
+        )))
         .bind(dataset_id)
         .bind(page.limit)
         .bind(page.offset)

@@ -5,6 +5,7 @@
 
 pub mod datasets;
 mod error;
+pub mod jobs;
 pub mod meshes;
 
 use std::path::Path;
