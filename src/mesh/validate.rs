@@ -5,8 +5,8 @@
 
 use super::clean::{drop_degenerate, drop_unreferenced, weld};
 use super::format::Format;
-use super::io::{self, Limits};
 use super::io::text::ordinal;
+use super::io::{self, Limits};
 use super::manifold::{bowtie_vertices, check_edges};
 use super::measures::{area_cm2, bounding_box, volume_ml};
 use super::orient::orient;
@@ -93,7 +93,10 @@ pub fn validate(mut mesh: Mesh, opts: &IngestOptions) -> Result<Ingested, MeshEr
 
     let welded = weld(&mut mesh, opts.weld_tolerance_mm);
     if welded > 0 {
-        warn("mesh.duplicate_vertices_welded", welded_message(welded, opts.weld_tolerance_mm));
+        warn(
+            "mesh.duplicate_vertices_welded",
+            welded_message(welded, opts.weld_tolerance_mm),
+        );
     }
     let mut origin: Vec<u32> = (0..mesh.faces.len() as u32).collect();
     let degenerate = drop_degenerate(&mut mesh, &mut origin);
@@ -112,7 +115,11 @@ pub fn validate(mut mesh: Mesh, opts: &IngestOptions) -> Result<Ingested, MeshEr
     }
     check_not_empty(&mesh, degenerate)?;
     if mesh.vertices.len() > opts.limits.max_vertices {
-        return Err(too_large(mesh.vertices.len(), "vertices", opts.limits.max_vertices));
+        return Err(too_large(
+            mesh.vertices.len(),
+            "vertices",
+            opts.limits.max_vertices,
+        ));
     }
 
     let edges = check_edges(&mesh, &origin)?;
@@ -184,9 +191,17 @@ fn check_input(mesh: &Mesh, limits: &Limits) -> Result<(), MeshError> {
     // Welding can only lower the count; STL repeats every corner, so allow three per face.
     let raw_vertex_limit = limits.max_vertices.max(3 * limits.max_faces);
     if mesh.vertices.len() > raw_vertex_limit {
-        return Err(too_large(mesh.vertices.len(), "vertices", limits.max_vertices));
+        return Err(too_large(
+            mesh.vertices.len(),
+            "vertices",
+            limits.max_vertices,
+        ));
     }
-    if let Some(v) = mesh.vertices.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+    if let Some(v) = mesh
+        .vertices
+        .iter()
+        .position(|p| !p.iter().all(|c| c.is_finite()))
+    {
         return Err(MeshError::NonFinite {
             at: format!("the {} vertex", ordinal(v)),
         });
@@ -255,5 +270,7 @@ fn summarise(mesh: &Mesh, watertight: bool, original_vertex_count: usize) -> Mes
     }
 }
 
+#[cfg(test)]
+mod corpus;
 #[cfg(test)]
 mod tests;
