@@ -10,7 +10,7 @@ use super::io::{self, Limits};
 use super::manifold::{bowtie_vertices, check_edges};
 use super::measures::{area_cm2, bounding_box, volume_ml};
 use super::orient::orient;
-use super::topology::{connected_components, euler_characteristic};
+use super::topology::{by_edge, connected_components};
 use super::{Mesh, MeshError};
 
 /// Fewest vertices of a surface (a tetrahedron).
@@ -166,7 +166,8 @@ pub fn validate(mut mesh: Mesh, opts: &IngestOptions) -> Result<Ingested, MeshEr
             ),
         );
     }
-    let summary = summarise(&mesh, watertight, original_vertex_count);
+    let edge_count = by_edge(&edges.uses).count();
+    let summary = summarise(&mesh, watertight, edge_count, original_vertex_count);
     if summary.components > 1 {
         warn(
             "mesh.multiple_components",
@@ -254,7 +255,12 @@ fn welded_message(welded: usize, tolerance_mm: f64) -> String {
     format!("merged {welded} vertices {how} (STL files always repeat shared corners)")
 }
 
-fn summarise(mesh: &Mesh, watertight: bool, original_vertex_count: usize) -> MeshSummary {
+fn summarise(
+    mesh: &Mesh,
+    watertight: bool,
+    edge_count: usize,
+    original_vertex_count: usize,
+) -> MeshSummary {
     let (bbox_min, bbox_max) = bounding_box(mesh);
     MeshSummary {
         vertex_count: mesh.vertices.len(),
@@ -263,7 +269,8 @@ fn summarise(mesh: &Mesh, watertight: bool, original_vertex_count: usize) -> Mes
         area_cm2: area_cm2(mesh),
         watertight,
         components: connected_components(mesh).0,
-        euler_characteristic: euler_characteristic(mesh),
+        euler_characteristic: mesh.vertices.len() as i64 - edge_count as i64
+            + mesh.faces.len() as i64,
         bbox_min,
         bbox_max,
         original_vertex_count,
