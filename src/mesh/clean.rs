@@ -96,7 +96,9 @@ pub(crate) fn is_degenerate(mesh: &Mesh, f: usize) -> bool {
 /// Removes degenerate triangles; `origin` (the file's triangle index per face) follows.
 /// Returns how many were removed.
 pub(crate) fn drop_degenerate(mesh: &mut Mesh, origin: &mut Vec<u32>) -> usize {
-    let keep: Vec<bool> = (0..mesh.faces.len()).map(|f| !is_degenerate(mesh, f)).collect();
+    let keep: Vec<bool> = (0..mesh.faces.len())
+        .map(|f| !is_degenerate(mesh, f))
+        .collect();
     let before = mesh.faces.len();
     let mut k = keep.iter();
     mesh.faces.retain(|_| *k.next().unwrap_or(&true));
@@ -137,18 +139,33 @@ mod tests {
     #[test]
     fn exact_weld_keeps_first_occurrence_and_merges_signed_zero() {
         let mut m = Mesh::new(
-            vec![[1.0, 0.0, 0.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [-0.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            vec![
+                [1.0, 0.0, 0.0],
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [-0.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+            ],
             vec![[0, 1, 4], [2, 3, 4]],
         );
         assert_eq!(weld(&mut m, 0.0), 2);
-        assert_eq!(m.vertices, vec![[1.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        assert_eq!(
+            m.vertices,
+            vec![[1.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+        );
         assert_eq!(m.faces, vec![[0, 1, 2], [0, 1, 2]]);
     }
 
     #[test]
     fn tolerance_weld_joins_near_points_only() {
         let mut m = Mesh::new(
-            vec![[0.0; 3], [0.05, 0.0, 0.0], [0.3, 0.0, 0.0], [0.0, 0.0, 0.09], [5.0; 3]],
+            vec![
+                [0.0; 3],
+                [0.05, 0.0, 0.0],
+                [0.3, 0.0, 0.0],
+                [0.0, 0.0, 0.09],
+                [5.0; 3],
+            ],
             vec![[0, 2, 4], [1, 3, 4]],
         );
         assert_eq!(weld(&mut m, 0.1), 2);
@@ -159,7 +176,13 @@ mod tests {
     #[test]
     fn degenerate_and_unreferenced() {
         let mut m = Mesh::new(
-            vec![[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 0.0], [7.0; 3]],
+            vec![
+                [0.0; 3],
+                [1.0, 0.0, 0.0],
+                [2.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [7.0; 3],
+            ],
             vec![[0, 1, 3], [0, 1, 2], [1, 1, 3], [3, 1, 0]],
         );
         let mut origin = vec![0, 1, 2, 3];
@@ -174,7 +197,10 @@ mod tests {
 
     #[test]
     fn thin_but_valid_triangles_are_kept() {
-        let m = Mesh::new(vec![[0.0; 3], [100.0, 0.0, 0.0], [50.0, 1e-6, 0.0]], vec![[0, 1, 2]]);
+        let m = Mesh::new(
+            vec![[0.0; 3], [100.0, 0.0, 0.0], [50.0, 1e-6, 0.0]],
+            vec![[0, 1, 2]],
+        );
         assert!(!is_degenerate(&m, 0));
     }
 }

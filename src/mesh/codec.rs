@@ -110,7 +110,10 @@ mod tests {
         let c = cube();
         let h = sha256_hex(&c);
         assert_eq!(h.len(), 64);
-        assert!(h.chars().all(|ch| ch.is_ascii_hexdigit() && !ch.is_ascii_uppercase()));
+        assert!(
+            h.chars()
+                .all(|ch| ch.is_ascii_hexdigit() && !ch.is_ascii_uppercase())
+        );
         assert_eq!(h, sha256_hex(&cube()));
         let mut moved = cube();
         moved.vertices[3][0] += 1e-9;

@@ -166,7 +166,9 @@ mod tests {
                 fix: "b".into(),
             },
             MeshError::empty("the file is empty"),
-            MeshError::NonFinite { at: "vertex 1".into() },
+            MeshError::NonFinite {
+                at: "vertex 1".into(),
+            },
             MeshError::NonManifold { detail: "d".into() },
             MeshError::CorruptRecord { detail: "d".into() },
         ];

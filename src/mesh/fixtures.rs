@@ -27,7 +27,12 @@ pub(crate) fn cube() -> Mesh {
 
 /// Regular tetrahedron with corners at `5 · (±1, ±1, ±1)` (even sign count) plus `offset`.
 pub(crate) fn tetrahedron(offset: f64) -> Mesh {
-    let p: [[f64; 3]; 4] = [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]];
+    let p: [[f64; 3]; 4] = [
+        [1.0, 1.0, 1.0],
+        [1.0, -1.0, -1.0],
+        [-1.0, 1.0, -1.0],
+        [-1.0, -1.0, 1.0],
+    ];
     Mesh::new(
         p.map(|v| v.map(|x| 5.0 * x + offset)).to_vec(),
         vec![[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]],

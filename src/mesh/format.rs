@@ -29,10 +29,18 @@ impl Format {
 
     /// The format of a MIME content type; parameters after `;` are ignored.
     pub fn from_content_type(ct: &str) -> Option<Format> {
-        let essence = ct.split(';').next().unwrap_or("").trim().to_ascii_lowercase();
+        let essence = ct
+            .split(';')
+            .next()
+            .unwrap_or("")
+            .trim()
+            .to_ascii_lowercase();
         match essence.as_str() {
             "model/obj" | "text/x-obj" | "application/x-tgif" => Some(Format::Obj),
-            "model/stl" | "model/x.stl-binary" | "model/x.stl-ascii" | "application/sla"
+            "model/stl"
+            | "model/x.stl-binary"
+            | "model/x.stl-ascii"
+            | "application/sla"
             | "application/vnd.ms-pki.stl" => Some(Format::Stl),
             "application/x-ply" | "application/ply" | "model/ply" => Some(Format::Ply),
             "application/vnd.vtk" | "application/x-vtk" => Some(Format::Vtk),
@@ -104,15 +112,27 @@ mod tests {
             Format::from_content_type("Model/STL; charset=binary"),
             Some(Format::Stl)
         );
-        assert_eq!(Format::from_content_type("application/sla"), Some(Format::Stl));
+        assert_eq!(
+            Format::from_content_type("application/sla"),
+            Some(Format::Stl)
+        );
         assert_eq!(
             Format::from_content_type("application/vnd.ms-pki.stl"),
             Some(Format::Stl)
         );
-        assert_eq!(Format::from_content_type("model/x.stl-binary"), Some(Format::Stl));
-        assert_eq!(Format::from_content_type("application/ply"), Some(Format::Ply));
+        assert_eq!(
+            Format::from_content_type("model/x.stl-binary"),
+            Some(Format::Stl)
+        );
+        assert_eq!(
+            Format::from_content_type("application/ply"),
+            Some(Format::Ply)
+        );
         assert_eq!(Format::from_content_type("model/ply"), Some(Format::Ply));
-        assert_eq!(Format::from_content_type("application/x-vtk"), Some(Format::Vtk));
+        assert_eq!(
+            Format::from_content_type("application/x-vtk"),
+            Some(Format::Vtk)
+        );
         assert_eq!(Format::from_content_type("application/json"), None);
         assert_eq!(Format::from_content_type(""), None);
     }

@@ -87,7 +87,11 @@ fn point(mesh: &Mesh, v: u32) -> String {
     let c = p.map(|x| {
         let s = format!("{x:.4}");
         let s = s.trim_end_matches('0').trim_end_matches('.');
-        if s == "-0" { "0".to_string() } else { s.to_string() }
+        if s == "-0" {
+            "0".to_string()
+        } else {
+            s.to_string()
+        }
     });
     format!("({}, {}, {})", c[0], c[1], c[2])
 }
@@ -96,7 +100,10 @@ fn point(mesh: &Mesh, v: u32) -> String {
 /// surface touches itself at a point there.
 pub(crate) fn bowtie_vertices(mesh: &Mesh, uses: &[EdgeUse]) -> usize {
     let corner = |f: u32, v: u32| -> usize {
-        let k = mesh.faces[f as usize].iter().position(|&x| x == v).unwrap_or(0);
+        let k = mesh.faces[f as usize]
+            .iter()
+            .position(|&x| x == v)
+            .unwrap_or(0);
         3 * f as usize + k
     };
     let mut fans = UnionFind::new(3 * mesh.faces.len());
@@ -141,13 +148,22 @@ mod tests {
     fn fin_edge_is_named() {
         // Three triangles on the edge (0,0,0)-(10,0,0).
         let m = Mesh::new(
-            vec![[0.0; 3], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0], [0.0, -10.0, 0.0], [0.0, 0.0, 10.0]],
+            vec![
+                [0.0; 3],
+                [10.0, 0.0, 0.0],
+                [0.0, 10.0, 0.0],
+                [0.0, -10.0, 0.0],
+                [0.0, 0.0, 10.0],
+            ],
             vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]],
         );
         let e = check_edges(&m, &[0, 1, 2]).unwrap_err();
         assert_eq!(e.code(), "mesh.non_manifold");
         let msg = e.to_string();
-        assert!(msg.contains("from (0, 0, 0) to (10, 0, 0) mm is shared by 3 triangles"), "{msg}");
+        assert!(
+            msg.contains("from (0, 0, 0) to (10, 0, 0) mm is shared by 3 triangles"),
+            "{msg}"
+        );
         assert!(msg.contains("the 1st, 2nd, 3rd triangles"), "{msg}");
     }
 
@@ -166,8 +182,17 @@ mod tests {
         let other = tetrahedron(0.0);
         // Reflect the second through vertex 0 so they share only that vertex.
         let p0 = m.vertices[0];
-        m.vertices.extend(other.vertices[1..].iter().map(|v| [0, 1, 2].map(|k| 2.0 * p0[k] - v[k])));
-        m.faces.extend(other.faces.iter().map(|f| f.map(|i| if i == 0 { 0 } else { i + 3 })));
+        m.vertices.extend(
+            other.vertices[1..]
+                .iter()
+                .map(|v| [0, 1, 2].map(|k| 2.0 * p0[k] - v[k])),
+        );
+        m.faces.extend(
+            other
+                .faces
+                .iter()
+                .map(|f| f.map(|i| if i == 0 { 0 } else { i + 3 })),
+        );
         let origin: Vec<u32> = (0..8).collect();
         let r = check_edges(&m, &origin).unwrap();
         assert_eq!(r.boundary_edges, 0);

@@ -162,19 +162,37 @@ mod tests {
 
     #[test]
     fn regular_tetrahedron_normals_point_away_from_the_centroid() {
-        let p = [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]];
-        let t = Mesh::new(p.map(|v| v.map(|x| 5.0 * x + 2.0)).to_vec(), vec![[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]]);
+        let p = [
+            [1.0, 1.0, 1.0],
+            [1.0, -1.0, -1.0],
+            [-1.0, 1.0, -1.0],
+            [-1.0, -1.0, 1.0],
+        ];
+        let t = Mesh::new(
+            p.map(|v| v.map(|x| 5.0 * x + 2.0)).to_vec(),
+            vec![[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]],
+        );
         assert!(signed_volume_mm3(&t) > 0.0);
         let n = vertex_normals(&t);
         for v in 0..4 {
-            assert!(close(n[v], normalized(p[v]), 1e-12), "vertex {v}: {:?}", n[v]);
+            assert!(
+                close(n[v], normalized(p[v]), 1e-12),
+                "vertex {v}: {:?}",
+                n[v]
+            );
         }
     }
 
     #[test]
     fn zero_area_faces_and_isolated_vertices() {
         let m = Mesh::new(
-            vec![[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 0.0], [9.0; 3]],
+            vec![
+                [0.0; 3],
+                [1.0, 0.0, 0.0],
+                [2.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [9.0; 3],
+            ],
             vec![[0, 1, 2], [0, 1, 3]],
         );
         assert_eq!(face_normals(&m)[0], [0.0; 3]);
@@ -188,7 +206,12 @@ mod tests {
     fn tetrahedron() -> Mesh {
         // Corner tetrahedron with legs of 10 mm: volume 1000/6 mm³.
         Mesh::new(
-            vec![[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0], [0.0, 0.0, 10.0]],
+            vec![
+                [0.0, 0.0, 0.0],
+                [10.0, 0.0, 0.0],
+                [0.0, 10.0, 0.0],
+                [0.0, 0.0, 10.0],
+            ],
             vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
         )
     }

@@ -192,7 +192,11 @@ mod tests {
         let mut faces = Vec::new();
         for i in 0..n {
             let (a, b) = (2 * i, 2 * i + 1);
-            let (c, d) = if i + 1 < n { (2 * i + 2, 2 * i + 3) } else { (1, 0) };
+            let (c, d) = if i + 1 < n {
+                (2 * i + 2, 2 * i + 3)
+            } else {
+                (1, 0)
+            };
             faces.push([a, c, b]);
             faces.push([b, c, d]);
         }

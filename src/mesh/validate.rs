@@ -5,12 +5,12 @@
 
 use super::clean::{drop_degenerate, drop_unreferenced, weld};
 use super::format::Format;
-use super::io::{self, Limits};
 use super::io::text::ordinal;
+use super::io::{self, Limits};
 use super::manifold::{bowtie_vertices, check_edges};
 use super::measures::{area_cm2, bounding_box, volume_ml};
 use super::orient::orient;
-use super::topology::{connected_components, euler_characteristic};
+use super::topology::{by_edge, connected_components};
 use super::{Mesh, MeshError};
 
 /// Fewest vertices of a surface (a tetrahedron).
@@ -93,7 +93,10 @@ pub fn validate(mut mesh: Mesh, opts: &IngestOptions) -> Result<Ingested, MeshEr
 
     let welded = weld(&mut mesh, opts.weld_tolerance_mm);
     if welded > 0 {
-        warn("mesh.duplicate_vertices_welded", welded_message(welded, opts.weld_tolerance_mm));
+        warn(
+            "mesh.duplicate_vertices_welded",
+            welded_message(welded, opts.weld_tolerance_mm),
+        );
     }
     let mut origin: Vec<u32> = (0..mesh.faces.len() as u32).collect();
     let degenerate = drop_degenerate(&mut mesh, &mut origin);
@@ -112,7 +115,11 @@ pub fn validate(mut mesh: Mesh, opts: &IngestOptions) -> Result<Ingested, MeshEr
     }
     check_not_empty(&mesh, degenerate)?;
     if mesh.vertices.len() > opts.limits.max_vertices {
-        return Err(too_large(mesh.vertices.len(), "vertices", opts.limits.max_vertices));
+        return Err(too_large(
+            mesh.vertices.len(),
+            "vertices",
+            opts.limits.max_vertices,
+        ));
     }
 
     let edges = check_edges(&mesh, &origin)?;
@@ -159,7 +166,8 @@ pub fn validate(mut mesh: Mesh, opts: &IngestOptions) -> Result<Ingested, MeshEr
             ),
         );
     }
-    let summary = summarise(&mesh, watertight, original_vertex_count);
+    let edge_count = by_edge(&edges.uses).count();
+    let summary = summarise(&mesh, watertight, edge_count, original_vertex_count);
     if summary.components > 1 {
         warn(
             "mesh.multiple_components",
@@ -184,9 +192,17 @@ fn check_input(mesh: &Mesh, limits: &Limits) -> Result<(), MeshError> {
     // Welding can only lower the count; STL repeats every corner, so allow three per face.
     let raw_vertex_limit = limits.max_vertices.max(3 * limits.max_faces);
     if mesh.vertices.len() > raw_vertex_limit {
-        return Err(too_large(mesh.vertices.len(), "vertices", limits.max_vertices));
+        return Err(too_large(
+            mesh.vertices.len(),
+            "vertices",
+            limits.max_vertices,
+        ));
     }
-    if let Some(v) = mesh.vertices.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+    if let Some(v) = mesh
+        .vertices
+        .iter()
+        .position(|p| !p.iter().all(|c| c.is_finite()))
+    {
         return Err(MeshError::NonFinite {
             at: format!("the {} vertex", ordinal(v)),
         });
@@ -239,7 +255,12 @@ fn welded_message(welded: usize, tolerance_mm: f64) -> String {
     format!("merged {welded} vertices {how} (STL files always repeat shared corners)")
 }
 
-fn summarise(mesh: &Mesh, watertight: bool, original_vertex_count: usize) -> MeshSummary {
+fn summarise(
+    mesh: &Mesh,
+    watertight: bool,
+    edge_count: usize,
+    original_vertex_count: usize,
+) -> MeshSummary {
     let (bbox_min, bbox_max) = bounding_box(mesh);
     MeshSummary {
         vertex_count: mesh.vertices.len(),
@@ -248,12 +269,15 @@ fn summarise(mesh: &Mesh, watertight: bool, original_vertex_count: usize) -> Mes
         area_cm2: area_cm2(mesh),
         watertight,
         components: connected_components(mesh).0,
-        euler_characteristic: euler_characteristic(mesh),
+        euler_characteristic: mesh.vertices.len() as i64 - edge_count as i64
+            + mesh.faces.len() as i64,
         bbox_min,
         bbox_max,
         original_vertex_count,
     }
 }
 
+#[cfg(test)]
+mod corpus;
 #[cfg(test)]
 mod tests;

@@ -31,7 +31,12 @@ pub(crate) struct MeshBuilder {
 
 impl MeshBuilder {
     /// A builder for `format`, reserving room for at most the limits.
-    pub(crate) fn new(format: Format, limits: &Limits, vertex_hint: usize, face_hint: usize) -> Self {
+    pub(crate) fn new(
+        format: Format,
+        limits: &Limits,
+        vertex_hint: usize,
+        face_hint: usize,
+    ) -> Self {
         let (convention, index_base) = match format {
             Format::Obj => (
                 "indices are 1-based in OBJ and negative ones count back from the latest vertex",
@@ -59,7 +64,11 @@ impl MeshBuilder {
     }
 
     /// Adds a vertex (mm); `line` locates it in text formats.
-    pub(crate) fn push_vertex(&mut self, v: [f64; 3], line: Option<usize>) -> Result<(), MeshError> {
+    pub(crate) fn push_vertex(
+        &mut self,
+        v: [f64; 3],
+        line: Option<usize>,
+    ) -> Result<(), MeshError> {
         if self.vertices.len() >= self.limits.max_vertices {
             return Err(MeshError::TooLarge {
                 count: None,
@@ -79,7 +88,11 @@ impl MeshBuilder {
     }
 
     /// Adds a polygon of 0-based vertex indices, fan-triangulated.
-    pub(crate) fn push_polygon(&mut self, polygon: &[i64], line: Option<usize>) -> Result<(), MeshError> {
+    pub(crate) fn push_polygon(
+        &mut self,
+        polygon: &[i64],
+        line: Option<usize>,
+    ) -> Result<(), MeshError> {
         let this = self.polygons;
         self.polygons += 1;
         if polygon.len() < 3 {
@@ -119,7 +132,12 @@ impl MeshBuilder {
     }
 
     /// Checks one index for sign and size and remembers the largest.
-    fn check_index(&mut self, i: i64, polygon: usize, line: Option<usize>) -> Result<u32, MeshError> {
+    fn check_index(
+        &mut self,
+        i: i64,
+        polygon: usize,
+        line: Option<usize>,
+    ) -> Result<u32, MeshError> {
         let index = match u32::try_from(i) {
             Ok(index) if (index as usize) < self.limits.max_vertices => index,
             _ => {
@@ -204,7 +222,11 @@ mod tests {
         assert_eq!(e.code(), "mesh.too_large");
         let e = b.push_polygon(&[0, -1, 2], Some(9)).unwrap_err();
         assert_eq!(e.code(), "mesh.index_out_of_range");
-        assert!(e.to_string().starts_with("the 2nd face (line 9) refers to vertex -1"), "{e}");
+        assert!(
+            e.to_string()
+                .starts_with("the 2nd face (line 9) refers to vertex -1"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -229,6 +251,9 @@ mod tests {
         b.push_vertex([0.0; 3], Some(3)).unwrap();
         let e = b.push_vertex([0.0, f64::NAN, 0.0], Some(4)).unwrap_err();
         assert_eq!(e.code(), "mesh.non_finite");
-        assert!(e.to_string().starts_with("the 2nd vertex (line 4) has"), "{e}");
+        assert!(
+            e.to_string().starts_with("the 2nd vertex (line 4) has"),
+            "{e}"
+        );
     }
 }

@@ -13,10 +13,43 @@ const BYTES_PER_LINE_HINT: usize = 32;
 
 /// OBJ statements that carry no triangle geometry and are skipped.
 const SKIPPED_STATEMENTS: &[&[u8]] = &[
-    b"vt", b"vn", b"vp", b"l", b"p", b"g", b"o", b"s", b"mg", b"usemtl", b"mtllib", b"maplib",
-    b"usemap", b"lod", b"shadow_obj", b"trace_obj", b"bevel", b"c_interp", b"d_interp",
-    b"ctech", b"stech", b"cstype", b"deg", b"bmat", b"step", b"curv", b"curv2", b"surf",
-    b"parm", b"trim", b"hole", b"scrv", b"sp", b"end", b"con", b"call", b"csh",
+    b"vt",
+    b"vn",
+    b"vp",
+    b"l",
+    b"p",
+    b"g",
+    b"o",
+    b"s",
+    b"mg",
+    b"usemtl",
+    b"mtllib",
+    b"maplib",
+    b"usemap",
+    b"lod",
+    b"shadow_obj",
+    b"trace_obj",
+    b"bevel",
+    b"c_interp",
+    b"d_interp",
+    b"ctech",
+    b"stech",
+    b"cstype",
+    b"deg",
+    b"bmat",
+    b"step",
+    b"curv",
+    b"curv2",
+    b"surf",
+    b"parm",
+    b"trim",
+    b"hole",
+    b"scrv",
+    b"sp",
+    b"end",
+    b"con",
+    b"call",
+    b"csh",
 ];
 
 /// Parses OBJ text.
@@ -53,7 +86,9 @@ pub(super) fn read(bytes: &[u8], limits: &Limits) -> Result<Mesh, MeshError> {
         }
     }
     if b.vertex_count() == 0 {
-        return Err(MeshError::empty("the OBJ file defines no vertices ('v' lines)"));
+        return Err(MeshError::empty(
+            "the OBJ file defines no vertices ('v' lines)",
+        ));
     }
     b.finish()
 }
@@ -103,7 +138,8 @@ fn resolve(corner: &[u8], b: &MeshBuilder, line: usize) -> Result<i64, MeshError
 
 /// OBJ text: `v x y z` with shortest round-trip decimals, then 1-based `f a b c`.
 pub(super) fn write(mesh: &Mesh) -> Vec<u8> {
-    let mut out = Vec::with_capacity(BYTES_PER_LINE_HINT * (mesh.vertices.len() + mesh.faces.len()));
+    let mut out =
+        Vec::with_capacity(BYTES_PER_LINE_HINT * (mesh.vertices.len() + mesh.faces.len()));
     let _ = writeln!(
         out,
         "# cohortforge surface mesh in mm: {} vertices, {} triangles",

@@ -23,7 +23,11 @@ enum Role {
 /// The body after `end_header`, read value by value.
 enum Body<'a> {
     Ascii(Tokens<'a>),
-    Binary { bytes: &'a [u8], pos: usize, base: usize },
+    Binary {
+        bytes: &'a [u8],
+        pos: usize,
+        base: usize,
+    },
 }
 
 /// Why a value could not be read.
@@ -126,6 +130,10 @@ pub(super) fn read(bytes: &[u8], limits: &Limits) -> Result<Mesh, MeshError> {
             .properties
             .iter()
             .all(|p| matches!(p, Property::Scalar { .. }));
+        if element.properties.is_empty() {
+            // Instances without properties take no bytes, whatever the count says.
+            continue;
+        }
         if role == Role::Other && fixed && h.encoding == Encoding::BinaryLittleEndian {
             let size = element.min_bytes(h.encoding);
             body.skip(element.count, size)
@@ -229,7 +237,9 @@ fn read_instance(
         let name = property.name();
         match *property {
             Property::Scalar { ty, .. } => {
-                let x = body.value(ty).map_err(|m| missing(m, body, element, i, name))?;
+                let x = body
+                    .value(ty)
+                    .map_err(|m| missing(m, body, element, i, name))?;
                 if let Role::Vertex(axes) = role
                     && let Some(k) = axes.iter().position(|&a| a == p)
                 {
@@ -237,11 +247,15 @@ fn read_instance(
                 }
             }
             Property::List { count, item, .. } => {
-                let n = body.value(count).map_err(|m| missing(m, body, element, i, name))?;
+                let n = body
+                    .value(count)
+                    .map_err(|m| missing(m, body, element, i, name))?;
                 let n = whole(n, body, element, i, name)?;
                 let keep = role == Role::Face(p);
                 for _ in 0..n {
-                    let x = body.value(item).map_err(|m| missing(m, body, element, i, name))?;
+                    let x = body
+                        .value(item)
+                        .map_err(|m| missing(m, body, element, i, name))?;
                     if keep {
                         polygon.push(whole(x, body, element, i, name)?);
                     }

@@ -150,7 +150,8 @@ pub(super) fn parse(bytes: &[u8]) -> Result<Header, MeshError> {
             }
         }
     }
-    let encoding = encoding.ok_or_else(|| header_error("the header", "there is no 'format' line"))?;
+    let encoding =
+        encoding.ok_or_else(|| header_error("the header", "there is no 'format' line"))?;
     Ok(Header {
         encoding,
         elements,
@@ -230,9 +231,8 @@ fn parse_count(count: &[u8], at: &str) -> Result<u64, MeshError> {
 
 fn parse_property(rest: &[&[u8]], at: &str) -> Result<Property, MeshError> {
     let scalar = |name: &[u8]| {
-        Scalar::from_name(name).ok_or_else(|| {
-            header_error(at, &format!("unknown property type {}", quote(name)))
-        })
+        Scalar::from_name(name)
+            .ok_or_else(|| header_error(at, &format!("unknown property type {}", quote(name))))
     };
     let name = |n: &[u8]| String::from_utf8_lossy(n).into_owned();
     match rest {
@@ -269,7 +269,10 @@ mod tests {
         assert_eq!(h.elements.len(), 2);
         assert_eq!(h.elements[0].count, 3);
         assert_eq!(h.elements[0].position("z"), Some(2));
-        assert_eq!(h.elements[0].min_bytes(Encoding::BinaryLittleEndian), 4 + 8 + 4 + 1);
+        assert_eq!(
+            h.elements[0].min_bytes(Encoding::BinaryLittleEndian),
+            4 + 8 + 4 + 1
+        );
         assert_eq!(
             h.elements[1].properties[0],
             Property::List {

@@ -90,7 +90,10 @@ fn read_binary(bytes: &[u8], limits: &Limits) -> Result<Mesh, MeshError> {
     }
     let n = n as usize;
     let mut vertices = Vec::with_capacity(3 * n);
-    for (t, record) in bytes[PREAMBLE_BYTES..].chunks_exact(TRIANGLE_BYTES).enumerate() {
+    for (t, record) in bytes[PREAMBLE_BYTES..]
+        .chunks_exact(TRIANGLE_BYTES)
+        .enumerate()
+    {
         for corner in 0..3 {
             let mut v = [0.0; 3];
             for (k, c) in v.iter_mut().enumerate() {
@@ -110,7 +113,9 @@ fn read_binary(bytes: &[u8], limits: &Limits) -> Result<Mesh, MeshError> {
 
 /// Faces `[3t, 3t+1, 3t+2]` of an unwelded triangle soup.
 fn corner_faces(n: usize) -> Vec<[u32; 3]> {
-    (0..n as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect()
+    (0..n as u32)
+        .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+        .collect()
 }
 
 fn non_finite(corner: usize, triangle: usize, line: Option<usize>) -> MeshError {
@@ -212,6 +217,10 @@ fn number(t: &mut Tokens) -> Result<f64, MeshError> {
 }
 
 fn expected(t: &Tokens, what: &str, found: &[u8]) -> MeshError {
+    if t.at_end() {
+        // A cut-off last token is a truncated file, not a grammar mistake.
+        return truncated(t);
+    }
     MeshError::parse(
         Format::Stl,
         t.at(),
@@ -241,7 +250,11 @@ pub(super) fn write(mesh: &Mesh) -> Vec<u8> {
         let [a, b, c] = mesh.triangle(f);
         let n = cross(sub(b, a), sub(c, a));
         let len = norm(n);
-        let unit = if len > 0.0 { n.map(|x| x / len) } else { [0.0; 3] };
+        let unit = if len > 0.0 {
+            n.map(|x| x / len)
+        } else {
+            [0.0; 3]
+        };
         for x in unit.iter().chain(&a).chain(&b).chain(&c) {
             out.extend_from_slice(&(*x as f32).to_le_bytes());
         }

@@ -13,7 +13,11 @@ fn parse(bytes: &[u8], format: Format) -> Mesh {
 
 fn fail(bytes: &[u8], format: Format) -> MeshError {
     match read(bytes, format, &limits()) {
-        Ok(m) => panic!("{format}: accepted {} vertices {} faces", m.vertices.len(), m.faces.len()),
+        Ok(m) => panic!(
+            "{format}: accepted {} vertices {} faces",
+            m.vertices.len(),
+            m.faces.len()
+        ),
         Err(e) => e,
     }
 }
@@ -27,7 +31,12 @@ fn assert_same_triangles(got: &Mesh, want: &Mesh, rel: f64) {
     for f in 0..want.faces.len() {
         let (g, w) = (got.triangle(f), want.triangle(f));
         for k in 0..3 {
-            assert!(close(g[k], w[k], rel), "face {f} corner {k}: {:?} vs {:?}", g[k], w[k]);
+            assert!(
+                close(g[k], w[k], rel),
+                "face {f} corner {k}: {:?} vs {:?}",
+                g[k],
+                w[k]
+            );
         }
     }
 }
@@ -45,7 +54,10 @@ fn round_trip_exact_formats() {
         for m in test_meshes() {
             let back = parse(&write(&m, format), format);
             assert_eq!(back.faces, m.faces, "{format}");
-            assert_eq!(back.vertices, m.vertices, "{format}: coordinates must survive exactly");
+            assert_eq!(
+                back.vertices, m.vertices,
+                "{format}: coordinates must survive exactly"
+            );
         }
     }
 }
@@ -73,12 +85,25 @@ fn obj_quads_negative_indices_and_slashes() {
     let m = parse(text, Format::Obj);
     assert_eq!(m.vertices.len(), 5);
     assert_eq!(m.vertices[2], [1.0, 1.0, 0.0]);
-    assert_eq!(m.faces, vec![[0, 3, 2], [0, 2, 1], [0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]]);
+    assert_eq!(
+        m.faces,
+        vec![
+            [0, 3, 2],
+            [0, 2, 1],
+            [0, 1, 4],
+            [1, 2, 4],
+            [2, 3, 4],
+            [3, 0, 4]
+        ]
+    );
 }
 
 #[test]
 fn obj_index_errors_name_the_line() {
-    let e = fail(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 907\n", Format::Obj);
+    let e = fail(
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 907\n",
+        Format::Obj,
+    );
     assert_eq!(e.code(), "mesh.index_out_of_range");
     assert_eq!(
         e.to_string(),
@@ -89,21 +114,34 @@ fn obj_index_errors_name_the_line() {
     let e = fail(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", Format::Obj);
     assert!(e.to_string().contains("vertex 0 but"), "{e}");
     let e = fail(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n", Format::Obj);
-    assert!(e.to_string().contains("(line 4) refers to vertex -4"), "{e}");
+    assert!(
+        e.to_string().contains("(line 4) refers to vertex -4"),
+        "{e}"
+    );
 }
 
 #[test]
 fn obj_grammar_errors() {
     let e = fail(b"v 0 0 0\nv 1 0\n", Format::Obj);
     assert_eq!(e.code(), "mesh.parse_error");
-    assert!(e.to_string().contains("at line 2: a 'v' line needs three numbers"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("at line 2: a 'v' line needs three numbers"),
+        "{e}"
+    );
     let e = fail(b"v 0 0 0\nhello world\n", Format::Obj);
-    assert!(e.to_string().contains("'hello' is not an OBJ statement"), "{e}");
+    assert!(
+        e.to_string().contains("'hello' is not an OBJ statement"),
+        "{e}"
+    );
     let e = fail(b"v 0 0 0\nv 1 0 0\nf 1 2\n", Format::Obj);
     assert!(e.to_string().contains("at least 3 vertices"), "{e}");
     let e = fail(b"v 0 0 0\nf 1 x 2\n", Format::Obj);
     assert!(e.to_string().contains("'x' is not a vertex index"), "{e}");
-    assert_eq!(fail(b"v 0 0 0\nv nan 0 0\n", Format::Obj).code(), "mesh.non_finite");
+    assert_eq!(
+        fail(b"v 0 0 0\nv nan 0 0\n", Format::Obj).code(),
+        "mesh.non_finite"
+    );
     assert_eq!(fail(b"# nothing\ng x\n", Format::Obj).code(), "mesh.empty");
     assert_eq!(fail(b"", Format::Obj).code(), "mesh.empty");
     assert_eq!(fail(b" \n\t\n", Format::Obj).code(), "mesh.empty");
@@ -126,7 +164,9 @@ pub(crate) fn garbage(n: usize) -> Vec<u8> {
     let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
     (0..n)
         .map(|_| {
-            x = x.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            x = x
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
             (x >> 33) as u8
         })
         .collect()
@@ -162,7 +202,11 @@ fn stl_binary_size_and_count_errors() {
     let bytes = write(&cube(), Format::Stl);
     let e = fail(&bytes[..bytes.len() - 20], Format::Stl);
     assert_eq!(e.code(), "mesh.parse_error");
-    assert!(e.to_string().contains("announces 12 triangles (684 bytes) but the file has only 664"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("announces 12 triangles (684 bytes) but the file has only 664"),
+        "{e}"
+    );
     let mut long = bytes.clone();
     long.extend_from_slice(&[0; 7]);
     assert_eq!(fail(&long, Format::Stl).code(), "mesh.parse_error");
@@ -170,11 +214,18 @@ fn stl_binary_size_and_count_errors() {
     huge[80..84].copy_from_slice(&10_000_000u32.to_le_bytes());
     let e = fail(&huge, Format::Stl);
     assert_eq!(e.code(), "mesh.too_large");
-    assert!(e.to_string().contains("announces 10000000 triangles"), "{e}");
+    assert!(
+        e.to_string().contains("announces 10000000 triangles"),
+        "{e}"
+    );
     assert_eq!(fail(b"abc", Format::Stl).code(), "mesh.parse_error");
-    let prose = "This is a plain text file that is long enough to fill a binary STL header. ".repeat(3);
+    let prose =
+        "This is a plain text file that is long enough to fill a binary STL header. ".repeat(3);
     let e = fail(prose.as_bytes(), Format::Stl);
-    assert!(e.to_string().contains("starts with 'This is a plain"), "{e}");
+    assert!(
+        e.to_string().contains("starts with 'This is a plain"),
+        "{e}"
+    );
     // Random bytes announce a random triangle count: almost surely over the limit.
     let noise = garbage(1000);
     assert!(u32::from_le_bytes([noise[80], noise[81], noise[82], noise[83]]) > 2_000_000);
@@ -182,7 +233,14 @@ fn stl_binary_size_and_count_errors() {
     let mut small_count = noise;
     small_count[80..84].copy_from_slice(&[5, 0, 0, 0]);
     assert_eq!(fail(&small_count, Format::Stl).code(), "mesh.parse_error");
-    let empty = parse(&bytes[..84].iter().enumerate().map(|(i, &b)| if i >= 80 { 0 } else { b }).collect::<Vec<_>>(), Format::Stl);
+    let empty = parse(
+        &bytes[..84]
+            .iter()
+            .enumerate()
+            .map(|(i, &b)| if i >= 80 { 0 } else { b })
+            .collect::<Vec<_>>(),
+        Format::Stl,
+    );
     assert!(empty.faces.is_empty());
 }
 
@@ -197,10 +255,18 @@ fn stl_ascii_errors() {
          (NaN or infinity); fix that vertex or re-export the mesh"
     );
     let cut = &ASCII_TETRA[..ASCII_TETRA.find("vertex 0 0 1e1").unwrap()];
-    assert!(fail(cut.as_bytes(), Format::Stl).to_string().contains("truncated"));
+    assert!(
+        fail(cut.as_bytes(), Format::Stl)
+            .to_string()
+            .contains("truncated")
+    );
     let typo = ASCII_TETRA.replacen("endloop", "end loop", 1);
     let e = fail(typo.as_bytes(), Format::Stl);
-    assert!(e.to_string().contains("at line 7: expected 'vertex' or 'endloop' but found 'end'"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("at line 7: expected 'vertex' or 'endloop' but found 'end'"),
+        "{e}"
+    );
 }
 
 // ---------- PLY ----------
@@ -257,16 +323,27 @@ fn ply_binary_little_endian() {
 fn ply_errors() {
     let e = fail(&binary_ply(9, None), Format::Ply);
     assert_eq!(e.code(), "mesh.index_out_of_range");
-    assert!(e.to_string().starts_with("the 4th face refers to vertex 9 but the file has only 4"), "{e}");
-    assert_eq!(fail(&binary_ply(-1, None), Format::Ply).code(), "mesh.index_out_of_range");
+    assert!(
+        e.to_string()
+            .starts_with("the 4th face refers to vertex 9 but the file has only 4"),
+        "{e}"
+    );
+    assert_eq!(
+        fail(&binary_ply(-1, None), Format::Ply).code(),
+        "mesh.index_out_of_range"
+    );
     let full = binary_ply(2, None);
     let e = fail(&full[..full.len() - 5], Format::Ply);
     assert_eq!(e.code(), "mesh.parse_error");
-    assert!(e.to_string().contains("ends inside the 4th 'face' element"), "{e}");
+    assert!(
+        e.to_string().contains("ends inside the 4th 'face' element"),
+        "{e}"
+    );
     let e = fail(&binary_ply(2, Some(10_000_000)), Format::Ply);
     assert_eq!(e.code(), "mesh.too_large");
     assert!(e.to_string().contains("announces 10000000 vertices"), "{e}");
-    let big = b"ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty float x\nend_header\n";
+    let big =
+        b"ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty float x\nend_header\n";
     assert_eq!(fail(big, Format::Ply).code(), "mesh.unsupported_format");
     let inf = b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
         property float z\nend_header\n0 0 0\n1 inf 0\n";
@@ -274,11 +351,25 @@ fn ply_errors() {
     assert_eq!(e.code(), "mesh.non_finite");
     assert!(e.to_string().starts_with("the 2nd vertex (line 9)"), "{e}");
     let no_z = b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 0\n";
-    assert!(fail(no_z, Format::Ply).to_string().contains("no scalar property 'z'"));
+    assert!(
+        fail(no_z, Format::Ply)
+            .to_string()
+            .contains("no scalar property 'z'")
+    );
     let words = b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
         property float z\nend_header\n0 zero 0\n";
-    assert!(fail(words, Format::Ply).to_string().contains("property 'y' of the 1st 'vertex' element but found 'zero'"));
+    assert!(
+        fail(words, Format::Ply)
+            .to_string()
+            .contains("property 'y' of the 1st 'vertex' element but found 'zero'")
+    );
     assert_eq!(fail(&garbage(300), Format::Ply).code(), "mesh.parse_error");
+    let empty_element = b"ply\nformat ascii 1.0\nelement nothing 1000000000000000000\n\
+        element vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n";
+    assert_eq!(
+        parse(empty_element, Format::Ply).vertices,
+        vec![[1.0, 2.0, 3.0]]
+    );
 }
 
 // ---------- VTK ----------
@@ -300,7 +391,14 @@ fn vtk_classic_layout_with_strips() {
     // Strip 3 0 2 4: (3, 0, 2), then (2, 0, 4) with the winding of odd triangles swapped.
     assert_eq!(
         m.faces,
-        vec![[0, 3, 2], [0, 2, 1], [0, 1, 4], [1, 2, 4], [3, 0, 2], [2, 0, 4]]
+        vec![
+            [0, 3, 2],
+            [0, 2, 1],
+            [0, 1, 4],
+            [1, 2, 4],
+            [3, 0, 2],
+            [2, 0, 4]
+        ]
     );
 }
 
@@ -314,24 +412,64 @@ fn vtk_51_offsets_layout() {
 #[test]
 fn vtk_errors() {
     let binary = VTK_CLASSIC.replace("ASCII", "BINARY");
-    assert_eq!(fail(binary.as_bytes(), Format::Vtk).code(), "mesh.unsupported_format");
+    assert_eq!(
+        fail(binary.as_bytes(), Format::Vtk).code(),
+        "mesh.unsupported_format"
+    );
     let grid = VTK_CLASSIC.replace("POLYDATA", "UNSTRUCTURED_GRID");
-    assert_eq!(fail(grid.as_bytes(), Format::Vtk).code(), "mesh.unsupported_format");
+    assert_eq!(
+        fail(grid.as_bytes(), Format::Vtk).code(),
+        "mesh.unsupported_format"
+    );
     let xml = b"<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\">\n";
     assert_eq!(fail(xml, Format::Vtk).code(), "mesh.unsupported_format");
-    let no_points = "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOLYGONS 1 4\n3 0 1 2\n";
+    let no_points =
+        "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOLYGONS 1 4\n3 0 1 2\n";
     let e = fail(no_points.as_bytes(), Format::Vtk);
     assert!(e.to_string().contains("no POINTS section"), "{e}");
     let out = VTK_CLASSIC.replace("3 1 2 4", "3 1 2 5");
     let e = fail(out.as_bytes(), Format::Vtk);
     assert_eq!(e.code(), "mesh.index_out_of_range");
-    assert!(e.to_string().contains("the 3rd face (line 13) refers to vertex 5"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("the 3rd face (line 13) refers to vertex 5"),
+        "{e}"
+    );
     let short = VTK_CLASSIC.replace("POLYGONS 3 13", "POLYGONS 3 10");
-    assert_eq!(fail(short.as_bytes(), Format::Vtk).code(), "mesh.parse_error");
+    assert_eq!(
+        fail(short.as_bytes(), Format::Vtk).code(),
+        "mesh.parse_error"
+    );
     let nan = VTK_CLASSIC.replace("0.5 0.5 1", "0.5 nan 1");
     assert_eq!(fail(nan.as_bytes(), Format::Vtk).code(), "mesh.non_finite");
     let huge = VTK_CLASSIC.replace("POINTS 5", "POINTS 10000000");
     assert_eq!(fail(huge.as_bytes(), Format::Vtk).code(), "mesh.too_large");
     assert_eq!(fail(&garbage(400), Format::Vtk).code(), "mesh.parse_error");
     assert_eq!(fail(b"hello", Format::Vtk).code(), "mesh.parse_error");
+}
+
+// ---------- robustness ----------
+
+/// Every prefix and many single-byte corruptions of valid files either parse or fail with
+/// an error; none panics.
+#[test]
+fn truncated_and_corrupted_files_never_panic() {
+    let t = tetrahedron(1.0);
+    let mut samples: Vec<(Format, Vec<u8>)> =
+        Format::ALL.iter().map(|&f| (f, write(&t, f))).collect();
+    samples.push((Format::Stl, ASCII_TETRA.as_bytes().to_vec()));
+    samples.push((Format::Vtk, VTK_51.as_bytes().to_vec()));
+    samples.push((Format::Ply, binary_ply(2, None)));
+    let noise = garbage(4096);
+    for (format, bytes) in &samples {
+        for cut in 0..bytes.len() {
+            let _ = read(&bytes[..cut], *format, &limits());
+        }
+        for (k, pair) in noise.chunks_exact(2).take(300).enumerate() {
+            let mut m = bytes.clone();
+            let at = (k * 7919 + pair[0] as usize) % m.len();
+            m[at] = pair[1];
+            let _ = crate::mesh::validate::ingest(&m, *format, &Default::default());
+        }
+    }
 }

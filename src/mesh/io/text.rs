@@ -58,6 +58,11 @@ impl<'a> Tokens<'a> {
         trim_cr(&rest[..len])
     }
 
+    /// Whether only whitespace is left.
+    pub(crate) fn at_end(&self) -> bool {
+        self.bytes[self.pos..].iter().all(u8::is_ascii_whitespace)
+    }
+
     /// The 1-based line the tokenizer is on.
     pub(crate) fn line(&self) -> usize {
         self.line
@@ -76,7 +81,8 @@ pub(crate) fn trim_cr(line: &[u8]) -> &[u8] {
 
 /// Whitespace-separated tokens of one line.
 pub(crate) fn words(line: &[u8]) -> impl Iterator<Item = &[u8]> {
-    line.split(u8::is_ascii_whitespace).filter(|w| !w.is_empty())
+    line.split(u8::is_ascii_whitespace)
+        .filter(|w| !w.is_empty())
 }
 
 /// A decimal floating-point number (also `nan`, `inf`; finiteness is checked later).
@@ -89,14 +95,31 @@ pub(crate) fn parse_i64(token: &[u8]) -> Option<i64> {
     std::str::from_utf8(token).ok()?.parse().ok()
 }
 
-/// A token quoted for a message, shortened and with invalid UTF-8 replaced.
+/// Bytes shown when quoting binary data in a message.
+const MAX_QUOTE_BYTES: usize = 4;
+
+/// A token quoted for a message, shortened; binary data is described by its first bytes.
 pub(crate) fn quote(token: &[u8]) -> String {
-    let text = String::from_utf8_lossy(token);
+    let Ok(text) = std::str::from_utf8(token) else {
+        return binary_quote(token);
+    };
+    if text.chars().any(|c| c.is_control() && !c.is_whitespace()) {
+        return binary_quote(token);
+    }
     let mut short: String = text.chars().take(MAX_QUOTE_CHARS).collect();
     if text.chars().count() > MAX_QUOTE_CHARS {
         short.push('…');
     }
     format!("'{}'", short.escape_debug())
+}
+
+fn binary_quote(token: &[u8]) -> String {
+    let bytes: Vec<String> = token
+        .iter()
+        .take(MAX_QUOTE_BYTES)
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    format!("binary data (bytes {} ...)", bytes.join(" "))
 }
 
 /// Rejects binary content in a text format: control bytes other than whitespace.
@@ -162,6 +185,11 @@ mod tests {
         assert_eq!(parse_i64(b"3.0"), None);
         assert_eq!(quote(b"abc"), "'abc'");
         assert_eq!(quote(&[b'x'; 50]).chars().count(), 43);
+        assert_eq!(
+            quote(&[0xff, 0x00, 0x41, 0x42, 0x43]),
+            "binary data (bytes ff 00 41 42 ...)"
+        );
+        assert_eq!(quote(b"a\x01"), "binary data (bytes 61 01 ...)");
     }
 
     #[test]
@@ -169,7 +197,9 @@ mod tests {
         let got: Vec<String> = [0, 1, 2, 3, 10, 11, 12, 20, 21, 101].map(ordinal).to_vec();
         assert_eq!(
             got,
-            ["1st", "2nd", "3rd", "4th", "11th", "12th", "13th", "21st", "22nd", "102nd"]
+            [
+                "1st", "2nd", "3rd", "4th", "11th", "12th", "13th", "21st", "22nd", "102nd"
+            ]
         );
     }
 

@@ -39,7 +39,13 @@ pub(super) fn read(bytes: &[u8], limits: &Limits) -> Result<Mesh, MeshError> {
             b"VERTICES" | b"LINES" => cells(&mut t, &mut b, limits, Cells::Skipped)?,
             b"METADATA" => skip_metadata(&mut t),
             b"POINT_DATA" | b"CELL_DATA" => break,
-            _ => return Err(expected(&t, "POINTS, POLYGONS or another POLYDATA section", tok)),
+            _ => {
+                return Err(expected(
+                    &t,
+                    "POINTS, POLYGONS or another POLYDATA section",
+                    tok,
+                ));
+            }
         }
     }
     if !has_points {
@@ -119,7 +125,12 @@ fn points(t: &mut Tokens, b: &mut MeshBuilder, limits: &Limits) -> Result<(), Me
 }
 
 /// A cell section in either layout, after its keyword.
-fn cells(t: &mut Tokens, b: &mut MeshBuilder, limits: &Limits, kind: Cells) -> Result<(), MeshError> {
+fn cells(
+    t: &mut Tokens,
+    b: &mut MeshBuilder,
+    limits: &Limits,
+    kind: Cells,
+) -> Result<(), MeshError> {
     let n = count(t)?;
     let size = count(t)?;
     if n > limits.max_faces as u64 || size > 3 * limits.max_faces as u64 {
@@ -157,14 +168,24 @@ fn cells(t: &mut Tokens, b: &mut MeshBuilder, limits: &Limits, kind: Cells) -> R
 }
 
 /// The VTK 5.1 layout: `OFFSETS type` with `n` offsets, `CONNECTIVITY type` with `size`.
-fn offset_cells(t: &mut Tokens, b: &mut MeshBuilder, n: u64, size: u64, kind: Cells) -> Result<(), MeshError> {
+fn offset_cells(
+    t: &mut Tokens,
+    b: &mut MeshBuilder,
+    n: u64,
+    size: u64,
+    kind: Cells,
+) -> Result<(), MeshError> {
     t.next_token().ok_or_else(|| truncated(t, "OFFSETS"))?;
     let mut offsets = Vec::with_capacity(n.min(1 << 16) as usize);
     for _ in 0..n {
         let o = index(t)?;
         let previous = offsets.last().copied().unwrap_or(0);
         if o < previous || o as u64 > size {
-            return Err(expected(t, "offsets that increase up to the connectivity size", b"?"));
+            return Err(expected(
+                t,
+                "offsets that increase up to the connectivity size",
+                b"?",
+            ));
         }
         offsets.push(o);
     }
@@ -195,7 +216,11 @@ fn emit(b: &mut MeshBuilder, cell: &[i64], kind: Cells, line: usize) -> Result<(
         Cells::Polygons => b.push_polygon(cell, Some(line)),
         Cells::Strips => {
             for (k, w) in cell.windows(3).enumerate() {
-                let tri = if k % 2 == 0 { [w[0], w[1], w[2]] } else { [w[1], w[0], w[2]] };
+                let tri = if k % 2 == 0 {
+                    [w[0], w[1], w[2]]
+                } else {
+                    [w[1], w[0], w[2]]
+                };
                 b.push_polygon(&tri, Some(line))?;
             }
             Ok(())
@@ -216,7 +241,9 @@ fn skip_metadata(t: &mut Tokens) {
 }
 
 fn count(t: &mut Tokens) -> Result<u64, MeshError> {
-    let tok = t.next_token().ok_or_else(|| truncated(t, "a section header"))?;
+    let tok = t
+        .next_token()
+        .ok_or_else(|| truncated(t, "a section header"))?;
     parse_i64(tok)
         .and_then(|c| u64::try_from(c).ok())
         .ok_or_else(|| expected(t, "a count (whole number ≥ 0)", tok))
@@ -233,6 +260,10 @@ fn number(t: &mut Tokens) -> Result<f64, MeshError> {
 }
 
 fn expected(t: &Tokens, what: &str, found: &[u8]) -> MeshError {
+    if t.at_end() {
+        // A cut-off last token is a truncated file, not a grammar mistake.
+        return truncated(t, "the last section");
+    }
     MeshError::parse(
         Format::Vtk,
         t.at(),
@@ -253,7 +284,8 @@ fn truncated(t: &Tokens, section: &str) -> MeshError {
 
 /// Legacy ASCII VTK 4.2 polydata with `double` points and classic `POLYGONS`.
 pub(super) fn write(mesh: &Mesh) -> Vec<u8> {
-    let mut out = Vec::with_capacity(BYTES_PER_LINE_HINT * (mesh.vertices.len() + mesh.faces.len()));
+    let mut out =
+        Vec::with_capacity(BYTES_PER_LINE_HINT * (mesh.vertices.len() + mesh.faces.len()));
     let _ = write!(
         out,
         "# vtk DataFile Version 4.2\ncohortforge surface mesh, coordinates in mm\nASCII\n\

@@ -24,7 +24,10 @@ fn unit_cube_summary() {
     assert!((s.area_cm2 - 6.0).abs() < 1e-12);
     assert!(s.watertight);
     assert_eq!((s.components, s.euler_characteristic), (1, 2));
-    assert_eq!((s.vertex_count, s.face_count, s.original_vertex_count), (8, 12, 8));
+    assert_eq!(
+        (s.vertex_count, s.face_count, s.original_vertex_count),
+        (8, 12, 8)
+    );
     assert_eq!((s.bbox_min, s.bbox_max), ([0.0; 3], [10.0; 3]));
     assert_eq!(i.mesh, cube());
 }
@@ -36,7 +39,11 @@ fn open_cube_is_accepted_with_a_warning() {
     let i = ok(c);
     assert!(!i.summary.watertight);
     assert_eq!(codes(&i), ["mesh.not_watertight"]);
-    assert!(i.warnings[0].message.contains("3 boundary edges"), "{}", i.warnings[0].message);
+    assert!(
+        i.warnings[0].message.contains("3 boundary edges"),
+        "{}",
+        i.warnings[0].message
+    );
     assert_eq!(i.summary.euler_characteristic, 8 - 18 + 11);
 }
 
@@ -72,7 +79,10 @@ fn stl_cube_is_welded_back_to_eight_vertices() {
     let i = ingest(&bytes, Format::Stl, &IngestOptions::default()).unwrap();
     assert_eq!(codes(&i), ["mesh.duplicate_vertices_welded"]);
     assert!(i.warnings[0].message.starts_with("merged 28 vertices"));
-    assert_eq!((i.summary.vertex_count, i.summary.original_vertex_count), (8, 36));
+    assert_eq!(
+        (i.summary.vertex_count, i.summary.original_vertex_count),
+        (8, 36)
+    );
     assert_eq!(i.summary.volume_ml, 1.0);
     assert_eq!(i.mesh.faces.len(), 12);
 }
@@ -105,7 +115,10 @@ fn degenerate_faces_and_their_vertices_are_removed() {
     let i = ok(c);
     assert_eq!(
         codes(&i),
-        ["mesh.degenerate_faces_removed", "mesh.unreferenced_vertices_removed"]
+        [
+            "mesh.degenerate_faces_removed",
+            "mesh.unreferenced_vertices_removed"
+        ]
     );
     assert!(i.warnings[0].message.starts_with("removed 2 degenerate"));
     assert!(i.summary.watertight);
@@ -117,7 +130,10 @@ fn degenerate_faces_and_their_vertices_are_removed() {
 fn empty_meshes() {
     let e = rejected(Mesh::default());
     assert_eq!(e.code(), "mesh.empty");
-    let one = Mesh::new(vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], vec![[0, 1, 2]]);
+    let one = Mesh::new(
+        vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        vec![[0, 1, 2]],
+    );
     let e = rejected(one);
     assert!(e.to_string().contains("only 3 vertices"), "{e}");
     let flat = Mesh::new(
@@ -126,7 +142,10 @@ fn empty_meshes() {
     );
     let e = rejected(flat);
     assert_eq!(e.code(), "mesh.empty");
-    assert!(e.to_string().starts_with("all 2 triangles are degenerate"), "{e}");
+    assert!(
+        e.to_string().starts_with("all 2 triangles are degenerate"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -140,7 +159,11 @@ fn rejections_of_meshes_made_in_code() {
     t.faces[1][2] = 4;
     let e = rejected(t);
     assert_eq!(e.code(), "mesh.index_out_of_range");
-    assert!(e.to_string().starts_with("the 2nd triangle refers to vertex 4"), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with("the 2nd triangle refers to vertex 4"),
+        "{e}"
+    );
     let tight = IngestOptions {
         limits: Limits {
             max_vertices: 100,
@@ -159,7 +182,11 @@ fn fan_of_three_triangles_is_non_manifold() {
     t.faces.push([0, 1, 4]);
     let e = rejected(t);
     assert_eq!(e.code(), "mesh.non_manifold");
-    assert!(e.to_string().contains("from (5, 5, 5) to (5, -5, -5) mm is shared by 3"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("from (5, 5, 5) to (5, -5, -5) mm is shared by 3"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -179,14 +206,22 @@ fn two_parts_and_a_bowtie_are_accepted_with_warnings() {
     m.faces.extend(far.faces.iter().map(|f| f.map(|i| i + 4)));
     let i = ok(m);
     assert_eq!(codes(&i), ["mesh.multiple_components"]);
-    assert_eq!((i.summary.components, i.summary.euler_characteristic), (2, 4));
+    assert_eq!(
+        (i.summary.components, i.summary.euler_characteristic),
+        (2, 4)
+    );
 
     let mut b = cube();
     let shift = |v: &[f64; 3]| [v[0] + 10.0, v[1] + 10.0, v[2] + 10.0];
     let second: Vec<[f64; 3]> = cube().vertices[1..].iter().map(shift).collect();
     b.vertices.extend(second);
     // The second cube's corner 0 is the first cube's corner 7.
-    b.faces.extend(cube().faces.iter().map(|f| f.map(|i| if i == 0 { 7 } else { i + 7 })));
+    b.faces.extend(
+        cube()
+            .faces
+            .iter()
+            .map(|f| f.map(|i| if i == 0 { 7 } else { i + 7 })),
+    );
     let i = ok(b);
     assert_eq!(codes(&i), ["mesh.non_manifold_vertices"]);
     assert_eq!(i.summary.volume_ml, 2.0);
@@ -200,8 +235,15 @@ fn sphere_survives_every_format() {
     for format in Format::ALL {
         let got = ingest(&io::write(&s, format), format, &IngestOptions::default()).unwrap();
         let g = &got.summary;
-        assert_eq!((g.vertex_count, g.face_count), (want.vertex_count, want.face_count), "{format}");
-        assert!((g.volume_ml - want.volume_ml).abs() < 1e-5 * want.volume_ml, "{format}");
+        assert_eq!(
+            (g.vertex_count, g.face_count),
+            (want.vertex_count, want.face_count),
+            "{format}"
+        );
+        assert!(
+            (g.volume_ml - want.volume_ml).abs() < 1e-5 * want.volume_ml,
+            "{format}"
+        );
         assert!(g.watertight && g.euler_characteristic == 2, "{format}");
     }
 }
@@ -211,8 +253,16 @@ fn summary_and_warning_serialise_with_stable_names() {
     let i = ok(cube());
     let json = serde_json::to_value(&i.summary).unwrap();
     for key in [
-        "vertex_count", "face_count", "volume_ml", "area_cm2", "watertight", "components",
-        "euler_characteristic", "bbox_min", "bbox_max", "original_vertex_count",
+        "vertex_count",
+        "face_count",
+        "volume_ml",
+        "area_cm2",
+        "watertight",
+        "components",
+        "euler_characteristic",
+        "bbox_min",
+        "bbox_max",
+        "original_vertex_count",
     ] {
         assert!(json.get(key).is_some(), "{key}");
     }
