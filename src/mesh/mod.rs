@@ -2,6 +2,7 @@
 //! and synthetic phantoms. Pure: no async, SQL or HTTP.
 
 pub mod measures;
+pub mod phantom;
 
 /// A triangle surface mesh.
 ///
