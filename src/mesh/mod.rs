@@ -12,6 +12,7 @@ pub mod io;
 mod manifold;
 pub mod measures;
 mod orient;
+pub mod phantom;
 pub mod topology;
 pub mod validate;
 
