@@ -151,7 +151,8 @@ async fn upload_meshes(
     if multipart {
         let files = read_multipart(&state, &query, request).await?;
         let records = store_files(&state, &dataset_id, files).await?;
-        return Ok((StatusCode::CREATED, Json(UploadedMeshes { meshes: records })).into_response());
+        let body = UploadResponse::Many(UploadedMeshes { meshes: records });
+        return Ok((StatusCode::CREATED, Json(body)).into_response());
     }
     let format = match (&query.format, ct.as_deref()) {
         (Some(f), _) => parse_format("format", f)?,
@@ -172,7 +173,7 @@ async fn upload_meshes(
     if let Ok(location) = HeaderValue::from_str(&format!("/v1/meshes/{}", record.id)) {
         headers.insert(header::LOCATION, location);
     }
-    Ok((StatusCode::CREATED, headers, Json(record)).into_response())
+    Ok((StatusCode::CREATED, headers, Json(UploadResponse::One(record))).into_response())
 }
 
 async fn read_multipart(
