@@ -8,6 +8,7 @@ use crate::mesh::format::Format;
 const MAX_QUOTE_CHARS: usize = 40;
 
 /// Whitespace-separated tokens of a text, with the 1-based line of the last token.
+#[derive(Clone)]
 pub(crate) struct Tokens<'a> {
     bytes: &'a [u8],
     pos: usize,

@@ -1,6 +1,6 @@
 //! Legacy VTK, ASCII `DATASET POLYDATA`: `POINTS` and `POLYGONS` (classic `n size` cells or
-//! the 5.1 `OFFSETS`/`CONNECTIVITY` layout), `TRIANGLE_STRIPS`; `VERTICES` and `LINES` are
-//! skipped and point or cell data ends the geometry.
+//! the 5.1 `OFFSETS`/`CONNECTIVITY` layout), `TRIANGLE_STRIPS`; `VERTICES`, `LINES` and
+//! `FIELD` data are skipped and point or cell data ends the geometry.
 
 use super::Limits;
 use super::build::MeshBuilder;
@@ -38,6 +38,7 @@ pub(super) fn read(bytes: &[u8], limits: &Limits) -> Result<Mesh, MeshError> {
             b"TRIANGLE_STRIPS" => cells(&mut t, &mut b, limits, Cells::Strips)?,
             b"VERTICES" | b"LINES" => cells(&mut t, &mut b, limits, Cells::Skipped)?,
             b"METADATA" => skip_metadata(&mut t),
+            b"FIELD" => skip_field(&mut t)?,
             b"POINT_DATA" | b"CELL_DATA" => break,
             _ => {
                 return Err(expected(
@@ -227,6 +228,30 @@ fn emit(b: &mut MeshBuilder, cell: &[i64], kind: Cells, line: usize) -> Result<(
         }
         Cells::Skipped => Ok(()),
     }
+}
+
+/// Skips dataset field data: `FIELD name n`, then per array `name components tuples type`
+/// and its values (each optionally followed by a `METADATA` block).
+fn skip_field(t: &mut Tokens) -> Result<(), MeshError> {
+    t.next_token().ok_or_else(|| truncated(t, "FIELD"))?;
+    let arrays = count(t)?;
+    for _ in 0..arrays {
+        t.next_token().ok_or_else(|| truncated(t, "FIELD"))?;
+        let values = count(t)?.saturating_mul(count(t)?);
+        t.next_token().ok_or_else(|| truncated(t, "FIELD"))?;
+        for _ in 0..values {
+            t.next_token().ok_or_else(|| truncated(t, "FIELD"))?;
+        }
+        let mut probe = t.clone();
+        if probe
+            .next_token()
+            .is_some_and(|k| k.eq_ignore_ascii_case(b"METADATA"))
+        {
+            *t = probe;
+            skip_metadata(t);
+        }
+    }
+    Ok(())
 }
 
 /// Skips a 5.1 `METADATA` block, which ends at a blank line.
