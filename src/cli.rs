@@ -75,7 +75,6 @@ pub fn run(cli: Cli) -> CliResult {
     }
 }
 
-
 fn serve(config: Config) -> CliResult {
     config.validate().map_err(|e| e.to_string())?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -109,7 +108,9 @@ fn write_phantoms(args: &PhantomArgs) -> CliResult {
     let phantoms = phantom::generate(args.family, args.count, args.seed);
     std::fs::create_dir_all(&args.out).map_err(|e| io_error(&args.out, e))?;
     for p in &phantoms {
-        let path = args.out.join(format!("{}.{}", p.name, args.format.extension()));
+        let path = args
+            .out
+            .join(format!("{}.{}", p.name, args.format.extension()));
         std::fs::write(&path, io::write(&p.mesh, args.format)).map_err(|e| io_error(&path, e))?;
     }
     let csv = args.out.join("params.csv");

@@ -93,7 +93,10 @@ impl Config {
             ("--admin-token", &self.admin_token),
             ("--read-token", &self.read_token),
         ] {
-            if token.as_ref().is_some_and(|t| t.chars().count() < MIN_TOKEN_CHARS) {
+            if token
+                .as_ref()
+                .is_some_and(|t| t.chars().count() < MIN_TOKEN_CHARS)
+            {
                 return Err(ConfigError::TokenTooShort(flag));
             }
         }
@@ -131,6 +134,9 @@ mod tests {
         assert!(matches!(c.validate(), Err(ConfigError::TokenTooShort(_))));
         c.admin_token = None;
         c.read_token = Some("0123456789abcdef".into());
-        assert!(matches!(c.validate(), Err(ConfigError::ReadTokenWithoutAdmin)));
+        assert!(matches!(
+            c.validate(),
+            Err(ConfigError::ReadTokenWithoutAdmin)
+        ));
     }
 }

@@ -33,7 +33,10 @@ impl Tokens {
     }
 
     fn scope_of(&self, presented: &str) -> Option<Scope> {
-        let matches = |t: &Option<String>| t.as_deref().is_some_and(|t| equal_in_constant_time(t, presented));
+        let matches = |t: &Option<String>| {
+            t.as_deref()
+                .is_some_and(|t| equal_in_constant_time(t, presented))
+        };
         if matches(&self.admin) {
             Some(Scope::Admin)
         } else if matches(&self.read) {
@@ -67,7 +70,10 @@ pub async fn require_token(
         .headers()
         .get(header::AUTHORIZATION)
         .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.strip_prefix("Bearer ").or_else(|| v.strip_prefix("bearer ")));
+        .and_then(|v| {
+            v.strip_prefix("Bearer ")
+                .or_else(|| v.strip_prefix("bearer "))
+        });
     let Some(presented) = presented else {
         return Err(ApiError::new(
             StatusCode::UNAUTHORIZED,

@@ -32,7 +32,10 @@ pub struct CreateDataset {
 /// Checks a free-text field: not blank, not too long, no control characters.
 pub(crate) fn check_label(field: &str, value: &str, max_chars: usize) -> Result<(), ApiError> {
     if value.trim().is_empty() {
-        return Err(ApiError::invalid_field(field, format!("{field} must not be empty")));
+        return Err(ApiError::invalid_field(
+            field,
+            format!("{field} must not be empty"),
+        ));
     }
     if value.chars().count() > max_chars {
         return Err(ApiError::invalid_field(

@@ -46,7 +46,11 @@ pub struct ApiError {
 
 impl ApiError {
     /// An error with a status, a stable code and a sentence for the user.
-    pub fn new(status: StatusCode, code: impl Into<Cow<'static, str>>, detail: impl Into<String>) -> Self {
+    pub fn new(
+        status: StatusCode,
+        code: impl Into<Cow<'static, str>>,
+        detail: impl Into<String>,
+    ) -> Self {
         Self {
             status,
             code: code.into(),
@@ -63,8 +67,12 @@ impl ApiError {
 
     /// 422 for a request field with an invalid value.
     pub fn invalid_field(field: &str, detail: impl Into<String>) -> Self {
-        Self::new(StatusCode::UNPROCESSABLE_ENTITY, "request.invalid_field", detail)
-            .with("field", field)
+        Self::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "request.invalid_field",
+            detail,
+        )
+        .with("field", field)
     }
 
     /// 500 for a failure that is not the client's fault; the detail goes to the log only.
@@ -108,11 +116,7 @@ impl ApiError {
     fn problem(self) -> Problem {
         Problem {
             kind: format!("urn:cohortforge:problem:{}", self.code),
-            title: self
-                .status
-                .canonical_reason()
-                .unwrap_or("Error")
-                .to_owned(),
+            title: self.status.canonical_reason().unwrap_or("Error").to_owned(),
             status: self.status.as_u16(),
             detail: self.detail,
             code: self.code.into_owned(),
@@ -201,7 +205,10 @@ impl From<JsonRejection> for ApiError {
             JsonRejection::JsonDataError(e) => Self::new(
                 StatusCode::UNPROCESSABLE_ENTITY,
                 "request.invalid_field",
-                format!("the JSON body does not match the expected fields: {}", e.body_text()),
+                format!(
+                    "the JSON body does not match the expected fields: {}",
+                    e.body_text()
+                ),
             ),
             other => Self::new(other.status(), "request.unreadable_body", other.body_text()),
         }
@@ -220,7 +227,11 @@ impl From<QueryRejection> for ApiError {
 
 impl From<PathRejection> for ApiError {
     fn from(rejection: PathRejection) -> Self {
-        Self::new(StatusCode::BAD_REQUEST, "request.invalid_path", rejection.body_text())
+        Self::new(
+            StatusCode::BAD_REQUEST,
+            "request.invalid_path",
+            rejection.body_text(),
+        )
     }
 }
 

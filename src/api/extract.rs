@@ -57,7 +57,10 @@ impl PageQuery {
         }
         let offset = self.offset.unwrap_or(0);
         if offset < 0 {
-            return Err(ApiError::invalid_field("offset", "offset must not be negative"));
+            return Err(ApiError::invalid_field(
+                "offset",
+                "offset must not be negative",
+            ));
         }
         Ok(Page { limit, offset })
     }

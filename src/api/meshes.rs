@@ -62,7 +62,7 @@ pub struct MeshFiles {
 #[serde(untagged)]
 pub enum UploadResponse {
     /// Raw body: the stored mesh.
-    One(MeshRecord),
+    One(Box<MeshRecord>),
     /// Multipart: every stored mesh.
     Many(UploadedMeshes),
 }
@@ -95,7 +95,9 @@ fn parse_format(field: &str, name: &str) -> Result<Format, ApiError> {
 }
 
 fn content_type(headers: &HeaderMap) -> Option<&str> {
-    headers.get(header::CONTENT_TYPE).and_then(|v| v.to_str().ok())
+    headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
 }
 
 fn unsupported_content_type(found: Option<&str>) -> ApiError {
@@ -156,7 +158,9 @@ async fn upload_meshes(
     }
     let format = match (&query.format, ct.as_deref()) {
         (Some(f), _) => parse_format("format", f)?,
-        (None, Some(c)) => Format::from_content_type(c).ok_or_else(|| unsupported_content_type(Some(c)))?,
+        (None, Some(c)) => {
+            Format::from_content_type(c).ok_or_else(|| unsupported_content_type(Some(c)))?
+        }
         (None, None) => return Err(unsupported_content_type(None)),
     };
     let bytes = Bytes::from_request(request, &state).await?;
@@ -164,7 +168,11 @@ async fn upload_meshes(
     if !name.is_empty() {
         check_name(&name)?;
     }
-    let file = UploadedFile { name, format, bytes };
+    let file = UploadedFile {
+        name,
+        format,
+        bytes,
+    };
     let mut records = store_files(&state, &dataset_id, vec![file]).await?;
     let record = records
         .pop()
@@ -173,7 +181,12 @@ async fn upload_meshes(
     if let Ok(location) = HeaderValue::from_str(&format!("/v1/meshes/{}", record.id)) {
         headers.insert(header::LOCATION, location);
     }
-    Ok((StatusCode::CREATED, headers, Json(UploadResponse::One(record))).into_response())
+    Ok((
+        StatusCode::CREATED,
+        headers,
+        Json(UploadResponse::One(Box::new(record))),
+    )
+        .into_response())
 }
 
 async fn read_multipart(
@@ -181,10 +194,18 @@ async fn read_multipart(
     query: &UploadQuery,
     request: Request,
 ) -> Result<Vec<UploadedFile>, ApiError> {
-    let default_format = query.format.as_deref().map(|f| parse_format("format", f)).transpose()?;
-    let mut multipart = Multipart::from_request(request, state)
-        .await
-        .map_err(|r| ApiError::new(StatusCode::BAD_REQUEST, "request.unreadable_body", r.body_text()))?;
+    let default_format = query
+        .format
+        .as_deref()
+        .map(|f| parse_format("format", f))
+        .transpose()?;
+    let mut multipart = Multipart::from_request(request, state).await.map_err(|r| {
+        ApiError::new(
+            StatusCode::BAD_REQUEST,
+            "request.unreadable_body",
+            r.body_text(),
+        )
+    })?;
     let mut files = Vec::new();
     while let Some(field) = multipart.next_field().await? {
         let part = files.len();
@@ -193,7 +214,9 @@ async fn read_multipart(
             return Err(ApiError::new(
                 StatusCode::UNPROCESSABLE_ENTITY,
                 "request.unexpected_part",
-                format!("multipart part '{field_name}' is not expected; send each mesh as a part named 'file'"),
+                format!(
+                    "multipart part '{field_name}' is not expected; send each mesh as a part named 'file'"
+                ),
             ));
         }
         let file_name = field.file_name().unwrap_or_default().to_owned();
@@ -210,7 +233,11 @@ async fn read_multipart(
             check_name(&name)?;
         }
         let bytes = field.bytes().await?;
-        files.push(UploadedFile { name, format, bytes });
+        files.push(UploadedFile {
+            name,
+            format,
+            bytes,
+        });
     }
     if files.is_empty() {
         return Err(ApiError::new(
@@ -243,16 +270,26 @@ async fn store_files(
             .into_iter()
             .enumerate()
             .map(|(part, file)| {
-                let ingested = mesh::validate::ingest(&file.bytes, file.format, &options).map_err(|e| {
-                    let err = ApiError::from(e);
-                    if count > 1 { err.with("part", part).with("filename", file.name.clone()) } else { err }
-                })?;
+                let ingested =
+                    mesh::validate::ingest(&file.bytes, file.format, &options).map_err(|e| {
+                        let err = ApiError::from(e);
+                        if count > 1 {
+                            err.with("part", part).with("filename", file.name.clone())
+                        } else {
+                            err
+                        }
+                    })?;
                 let name = if file.name.is_empty() {
                     format!("mesh_{}", &mesh::codec::sha256_hex(&ingested.mesh)[..12])
                 } else {
                     file.name
                 };
-                Ok(NewMesh { name, source_format: format_name(file.format), ingested, source: None })
+                Ok(NewMesh {
+                    name,
+                    source_format: format_name(file.format),
+                    ingested,
+                    source: None,
+                })
             })
             .collect::<Result<Vec<_>, ApiError>>()
     })
@@ -346,12 +383,21 @@ async fn download_mesh(
 pub(crate) fn mesh_file_response(name: &str, format: Format, bytes: Vec<u8>) -> Response {
     let safe: String = name
         .chars()
-        .map(|c| if c.is_ascii_alphanumeric() || "-_.".contains(c) { c } else { '_' })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
         .collect();
     let disposition = format!("attachment; filename=\"{safe}.{}\"", format.extension());
     let mut response = bytes.into_response();
     let headers = response.headers_mut();
-    headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(format.content_type()));
+    headers.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static(format.content_type()),
+    );
     if let Ok(value) = HeaderValue::from_str(&disposition) {
         headers.insert(header::CONTENT_DISPOSITION, value);
     }

@@ -181,10 +181,11 @@ impl Store {
     pub async fn submit_job(&self, new: NewJob) -> Result<(Job, bool), StoreError> {
         let mut tx = self.write.begin().await?;
         if let Some(key) = &new.idempotency_key {
-            let existing = sqlx::query("SELECT id, request_hash FROM jobs WHERE idempotency_key = ?")
-                .bind(key)
-                .fetch_optional(&mut *tx)
-                .await?;
+            let existing =
+                sqlx::query("SELECT id, request_hash FROM jobs WHERE idempotency_key = ?")
+                    .bind(key)
+                    .fetch_optional(&mut *tx)
+                    .await?;
             if let Some(row) = existing {
                 let hash: String = row.try_get("request_hash")?;
                 let id: String = row.try_get("id")?;

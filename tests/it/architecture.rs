@@ -20,7 +20,9 @@ const LAYERS: [&[&str]; 6] = [
 ];
 
 fn rust_files(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
-    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
     for entry in entries.flatten() {
         let path = entry.path();
         if path.is_dir() {
@@ -41,7 +43,12 @@ fn module_sources(module: &str) -> Vec<(String, String)> {
     }
     files
         .into_iter()
-        .map(|p| (p.display().to_string(), std::fs::read_to_string(&p).expect("readable")))
+        .map(|p| {
+            (
+                p.display().to_string(),
+                std::fs::read_to_string(&p).expect("readable"),
+            )
+        })
         .collect()
 }
 
@@ -64,14 +71,20 @@ fn pure_modules_do_not_use_io_frameworks() {
             }
         }
     }
-    assert!(offences.is_empty(), "pure modules must not do I/O: {offences:#?}");
+    assert!(
+        offences.is_empty(),
+        "pure modules must not do I/O: {offences:#?}"
+    );
 }
 
 #[test]
 fn modules_only_use_layers_below_them() {
     let mut offences = Vec::new();
     for (rank, layer) in LAYERS.iter().enumerate() {
-        let above: Vec<&str> = LAYERS[..rank].iter().flat_map(|l| l.iter().copied()).collect();
+        let above: Vec<&str> = LAYERS[..rank]
+            .iter()
+            .flat_map(|l| l.iter().copied())
+            .collect();
         for module in *layer {
             for (file, source) in module_sources(module) {
                 for upper in &above {
@@ -82,7 +95,10 @@ fn modules_only_use_layers_below_them() {
             }
         }
     }
-    assert!(offences.is_empty(), "dependencies must point down: {offences:#?}");
+    assert!(
+        offences.is_empty(),
+        "dependencies must point down: {offences:#?}"
+    );
 }
 
 #[test]

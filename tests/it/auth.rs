@@ -16,23 +16,53 @@ async fn tokens_guard_v1_by_scope() {
     })
     .await;
     let create = |token: Option<&str>| {
-        let mut request = s.client.post(s.url("/v1/datasets")).json(&json!({"name": "a", "organ": "lv"}));
+        let mut request = s
+            .client
+            .post(s.url("/v1/datasets"))
+            .json(&json!({"name": "a", "organ": "lv"}));
         if let Some(t) = token {
             request = request.bearer_auth(t);
         }
         request.send()
     };
-    expect_problem(create(None).await.unwrap(), StatusCode::UNAUTHORIZED, "auth.missing_token").await;
-    expect_problem(create(Some("not-the-token-at-all")).await.unwrap(), StatusCode::UNAUTHORIZED, "auth.invalid_token").await;
-    expect_problem(create(Some(READ)).await.unwrap(), StatusCode::FORBIDDEN, "auth.read_only").await;
+    expect_problem(
+        create(None).await.unwrap(),
+        StatusCode::UNAUTHORIZED,
+        "auth.missing_token",
+    )
+    .await;
+    expect_problem(
+        create(Some("not-the-token-at-all")).await.unwrap(),
+        StatusCode::UNAUTHORIZED,
+        "auth.invalid_token",
+    )
+    .await;
+    expect_problem(
+        create(Some(READ)).await.unwrap(),
+        StatusCode::FORBIDDEN,
+        "auth.read_only",
+    )
+    .await;
     let created = expect_json(create(Some(ADMIN)).await.unwrap(), StatusCode::CREATED).await;
     let id = created["id"].as_str().unwrap();
 
-    let read = s.client.get(s.url(&format!("/v1/datasets/{id}"))).bearer_auth(READ).send().await.unwrap();
+    let read = s
+        .client
+        .get(s.url(&format!("/v1/datasets/{id}")))
+        .bearer_auth(READ)
+        .send()
+        .await
+        .unwrap();
     expect_json(read, StatusCode::OK).await;
     let anonymous = s.client.get(s.url("/v1/datasets")).send().await.unwrap();
     expect_problem(anonymous, StatusCode::UNAUTHORIZED, "auth.missing_token").await;
-    let delete = s.client.delete(s.url(&format!("/v1/datasets/{id}"))).bearer_auth(READ).send().await.unwrap();
+    let delete = s
+        .client
+        .delete(s.url(&format!("/v1/datasets/{id}")))
+        .bearer_auth(READ)
+        .send()
+        .await
+        .unwrap();
     expect_problem(delete, StatusCode::FORBIDDEN, "auth.read_only").await;
 
     for open in ["/healthz", "/readyz", "/openapi.json"] {

@@ -22,12 +22,20 @@ async fn dataset_lifecycle() {
     assert_eq!(created["name"], "lv phantoms");
     assert_eq!(created["mesh_count"], 0);
 
-    let got = expect_json(s.client.get(s.url(&location)).send().await.unwrap(), StatusCode::OK).await;
+    let got = expect_json(
+        s.client.get(s.url(&location)).send().await.unwrap(),
+        StatusCode::OK,
+    )
+    .await;
     assert_eq!(got, created);
 
     s.dataset("second", "liver").await;
     let list = expect_json(
-        s.client.get(s.url("/v1/datasets?limit=1")).send().await.unwrap(),
+        s.client
+            .get(s.url("/v1/datasets?limit=1"))
+            .send()
+            .await
+            .unwrap(),
         StatusCode::OK,
     )
     .await;
@@ -49,15 +57,42 @@ async fn invalid_dataset_requests_name_the_problem() {
     let post = |body: serde_json::Value| s.client.post(s.url("/v1/datasets")).json(&body).send();
 
     let missing = post(json!({"name": "x"})).await.unwrap();
-    expect_problem(missing, StatusCode::UNPROCESSABLE_ENTITY, "request.invalid_field").await;
-    let unknown = post(json!({"name": "x", "organ": "lv", "colour": "red"})).await.unwrap();
-    let body = expect_problem(unknown, StatusCode::UNPROCESSABLE_ENTITY, "request.invalid_field").await;
-    assert!(body["detail"].as_str().unwrap().contains("colour"), "{body}");
+    expect_problem(
+        missing,
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "request.invalid_field",
+    )
+    .await;
+    let unknown = post(json!({"name": "x", "organ": "lv", "colour": "red"}))
+        .await
+        .unwrap();
+    let body = expect_problem(
+        unknown,
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "request.invalid_field",
+    )
+    .await;
+    assert!(
+        body["detail"].as_str().unwrap().contains("colour"),
+        "{body}"
+    );
     let blank = post(json!({"name": "  ", "organ": "lv"})).await.unwrap();
-    let body = expect_problem(blank, StatusCode::UNPROCESSABLE_ENTITY, "request.invalid_field").await;
+    let body = expect_problem(
+        blank,
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "request.invalid_field",
+    )
+    .await;
     assert_eq!(body["field"], "name");
-    let long = post(json!({"name": "x", "organ": "o".repeat(65)})).await.unwrap();
-    let body = expect_problem(long, StatusCode::UNPROCESSABLE_ENTITY, "request.invalid_field").await;
+    let long = post(json!({"name": "x", "organ": "o".repeat(65)}))
+        .await
+        .unwrap();
+    let body = expect_problem(
+        long,
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "request.invalid_field",
+    )
+    .await;
     assert_eq!(body["field"], "organ");
 
     let malformed = s
@@ -69,23 +104,64 @@ async fn invalid_dataset_requests_name_the_problem() {
         .await
         .unwrap();
     expect_problem(malformed, StatusCode::BAD_REQUEST, "request.malformed_json").await;
-    let not_json = s.client.post(s.url("/v1/datasets")).body("name=x").send().await.unwrap();
-    expect_problem(not_json, StatusCode::UNSUPPORTED_MEDIA_TYPE, "request.unsupported_media_type").await;
-    let bad_page = s.client.get(s.url("/v1/datasets?limit=0")).send().await.unwrap();
-    expect_problem(bad_page, StatusCode::UNPROCESSABLE_ENTITY, "request.invalid_field").await;
+    let not_json = s
+        .client
+        .post(s.url("/v1/datasets"))
+        .body("name=x")
+        .send()
+        .await
+        .unwrap();
+    expect_problem(
+        not_json,
+        StatusCode::UNSUPPORTED_MEDIA_TYPE,
+        "request.unsupported_media_type",
+    )
+    .await;
+    let bad_page = s
+        .client
+        .get(s.url("/v1/datasets?limit=0"))
+        .send()
+        .await
+        .unwrap();
+    expect_problem(
+        bad_page,
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "request.invalid_field",
+    )
+    .await;
 
-    let (items, total) = s.store.datasets(cohortforge::store::Page { limit: 10, offset: 0 }).await.unwrap();
-    assert!(items.is_empty() && total == 0, "a refused request stored a dataset");
+    let (items, total) = s
+        .store
+        .datasets(cohortforge::store::Page {
+            limit: 10,
+            offset: 0,
+        })
+        .await
+        .unwrap();
+    assert!(
+        items.is_empty() && total == 0,
+        "a refused request stored a dataset"
+    );
 }
 
 #[tokio::test]
 async fn unknown_routes_and_methods_are_problems_with_request_ids() {
     let s = TestServer::start().await;
-    let response = s.client.get(s.url("/v1/nothing-here")).send().await.unwrap();
+    let response = s
+        .client
+        .get(s.url("/v1/nothing-here"))
+        .send()
+        .await
+        .unwrap();
     assert!(response.headers().contains_key("x-request-id"));
     expect_problem(response, StatusCode::NOT_FOUND, "request.no_route").await;
     let response = s.client.put(s.url("/v1/datasets")).send().await.unwrap();
-    expect_problem(response, StatusCode::METHOD_NOT_ALLOWED, "request.method_not_allowed").await;
+    expect_problem(
+        response,
+        StatusCode::METHOD_NOT_ALLOWED,
+        "request.method_not_allowed",
+    )
+    .await;
     let response = s
         .client
         .get(s.url("/healthz"))

@@ -33,7 +33,10 @@ async fn phantoms_upload_in_every_format_and_download_in_every_format() {
         assert_eq!(record["components"], 1);
         assert_eq!(record["euler_characteristic"], 2);
         let volume = record["volume_ml"].as_f64().unwrap();
-        assert!((volume - measures::volume_ml(&p.mesh)).abs() < 1e-3 * volume, "{record}");
+        assert!(
+            (volume - measures::volume_ml(&p.mesh)).abs() < 1e-3 * volume,
+            "{record}"
+        );
         assert_eq!(record["sha256"].as_str().unwrap().len(), 64);
         ids.push((record["id"].as_str().unwrap().to_owned(), p, format));
     }
@@ -41,11 +44,17 @@ async fn phantoms_upload_in_every_format_and_download_in_every_format() {
 
     for (id, p, uploaded_as) in &ids {
         for format in Format::ALL {
-            let url = s.url(&format!("/v1/meshes/{id}/file?format={}", format.extension()));
+            let url = s.url(&format!(
+                "/v1/meshes/{id}/file?format={}",
+                format.extension()
+            ));
             let response = s.client.get(url).send().await.unwrap();
             assert_eq!(response.status(), StatusCode::OK);
             assert_eq!(response.headers()["content-type"], format.content_type());
-            let disposition = response.headers()["content-disposition"].to_str().unwrap().to_owned();
+            let disposition = response.headers()["content-disposition"]
+                .to_str()
+                .unwrap()
+                .to_owned();
             assert!(disposition.contains(&format!("{}.{}", p.name, format.extension())));
             let bytes = response.bytes().await.unwrap();
             let parsed = ingest(&bytes, format, &IngestOptions::default()).unwrap();
@@ -67,7 +76,9 @@ async fn listing_is_paginated_in_upload_order() {
     let dataset = s.dataset("liver", "liver").await;
     let phantoms = phantom::generate(Family::Liver, 5, 3);
     for p in &phantoms {
-        let response = s.upload(&dataset, "ply", io::write(&p.mesh, Format::Ply)).await;
+        let response = s
+            .upload(&dataset, "ply", io::write(&p.mesh, Format::Ply))
+            .await;
         expect_json(response, StatusCode::CREATED).await;
     }
     let page = expect_json(
@@ -95,26 +106,65 @@ async fn multipart_upload_is_all_or_nothing() {
     let form = |bad: bool| {
         let mut form = Form::new();
         for (i, p) in phantoms.iter().enumerate() {
-            let bytes = if bad && i == 1 { b"solid broken\nfacet normal".to_vec() } else { io::write(&p.mesh, Format::Stl) };
-            form = form.part("file", Part::bytes(bytes).file_name(format!("{}.stl", p.name)));
+            let bytes = if bad && i == 1 {
+                b"solid broken\nfacet normal".to_vec()
+            } else {
+                io::write(&p.mesh, Format::Stl)
+            };
+            form = form.part(
+                "file",
+                Part::bytes(bytes).file_name(format!("{}.stl", p.name)),
+            );
         }
         form
     };
     let url = s.url(&format!("/v1/datasets/{dataset}/meshes"));
-    let refused = s.client.post(&url).multipart(form(true)).send().await.unwrap();
-    let body = expect_problem(refused, StatusCode::UNPROCESSABLE_ENTITY, "mesh.parse_error").await;
+    let refused = s
+        .client
+        .post(&url)
+        .multipart(form(true))
+        .send()
+        .await
+        .unwrap();
+    let body = expect_problem(
+        refused,
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "mesh.parse_error",
+    )
+    .await;
     assert_eq!(body["part"], 1, "{body}");
-    assert_eq!(s.mesh_count(&dataset).await, 0, "a refused batch stored meshes");
+    assert_eq!(
+        s.mesh_count(&dataset).await,
+        0,
+        "a refused batch stored meshes"
+    );
 
-    let stored = s.client.post(&url).multipart(form(false)).send().await.unwrap();
+    let stored = s
+        .client
+        .post(&url)
+        .multipart(form(false))
+        .send()
+        .await
+        .unwrap();
     let body = expect_json(stored, StatusCode::CREATED).await;
     let meshes = body["meshes"].as_array().unwrap();
     assert_eq!(meshes.len(), 3);
     assert_eq!(meshes[2]["name"], phantoms[2].name.as_str());
     assert_eq!(s.mesh_count(&dataset).await, 3);
 
-    let empty = s.client.post(&url).multipart(Form::new().text("note", "x")).send().await.unwrap();
-    expect_problem(empty, StatusCode::UNPROCESSABLE_ENTITY, "request.unexpected_part").await;
+    let empty = s
+        .client
+        .post(&url)
+        .multipart(Form::new().text("note", "x"))
+        .send()
+        .await
+        .unwrap();
+    expect_problem(
+        empty,
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "request.unexpected_part",
+    )
+    .await;
 }
 
 #[tokio::test]
@@ -122,15 +172,32 @@ async fn same_geometry_twice_is_a_conflict_naming_the_mesh() {
     let s = TestServer::start().await;
     let dataset = s.dataset("lv", "lv").await;
     let p = &phantom::generate(Family::Lv, 1, 9)[0];
-    let first = expect_json(s.upload(&dataset, "obj", io::write(&p.mesh, Format::Obj)).await, StatusCode::CREATED).await;
-    let second = s.upload(&dataset, "obj", io::write(&p.mesh, Format::Obj)).await;
+    let first = expect_json(
+        s.upload(&dataset, "obj", io::write(&p.mesh, Format::Obj))
+            .await,
+        StatusCode::CREATED,
+    )
+    .await;
+    let second = s
+        .upload(&dataset, "obj", io::write(&p.mesh, Format::Obj))
+        .await;
     let body = expect_problem(second, StatusCode::CONFLICT, "mesh.duplicate").await;
     assert_eq!(body["existing_mesh_id"], first["id"]);
-    assert!(body["detail"].as_str().unwrap().contains(first["id"].as_str().unwrap()));
+    assert!(
+        body["detail"]
+            .as_str()
+            .unwrap()
+            .contains(first["id"].as_str().unwrap())
+    );
     assert_eq!(s.mesh_count(&dataset).await, 1);
     // Another dataset may hold the same geometry.
     let other = s.dataset("other", "lv").await;
-    expect_json(s.upload(&other, "obj", io::write(&p.mesh, Format::Obj)).await, StatusCode::CREATED).await;
+    expect_json(
+        s.upload(&other, "obj", io::write(&p.mesh, Format::Obj))
+            .await,
+        StatusCode::CREATED,
+    )
+    .await;
 }
 
 #[tokio::test]
@@ -140,18 +207,44 @@ async fn deleting_meshes_and_datasets() {
     let phantoms = phantom::generate(Family::Lv, 2, 1);
     let mut ids = Vec::new();
     for p in &phantoms {
-        let r = expect_json(s.upload(&dataset, "stl", io::write(&p.mesh, Format::Stl)).await, StatusCode::CREATED).await;
+        let r = expect_json(
+            s.upload(&dataset, "stl", io::write(&p.mesh, Format::Stl))
+                .await,
+            StatusCode::CREATED,
+        )
+        .await;
         ids.push(r["id"].as_str().unwrap().to_owned());
     }
-    let deleted = s.client.delete(s.url(&format!("/v1/meshes/{}", ids[0]))).send().await.unwrap();
+    let deleted = s
+        .client
+        .delete(s.url(&format!("/v1/meshes/{}", ids[0])))
+        .send()
+        .await
+        .unwrap();
     assert_eq!(deleted.status(), StatusCode::NO_CONTENT);
-    let gone = s.client.get(s.url(&format!("/v1/meshes/{}", ids[0]))).send().await.unwrap();
+    let gone = s
+        .client
+        .get(s.url(&format!("/v1/meshes/{}", ids[0])))
+        .send()
+        .await
+        .unwrap();
     expect_problem(gone, StatusCode::NOT_FOUND, "mesh.not_found").await;
     assert_eq!(s.mesh_count(&dataset).await, 1);
 
-    s.client.delete(s.url(&format!("/v1/datasets/{dataset}"))).send().await.unwrap();
-    let file = s.client.get(s.url(&format!("/v1/meshes/{}/file", ids[1]))).send().await.unwrap();
+    s.client
+        .delete(s.url(&format!("/v1/datasets/{dataset}")))
+        .send()
+        .await
+        .unwrap();
+    let file = s
+        .client
+        .get(s.url(&format!("/v1/meshes/{}/file", ids[1])))
+        .send()
+        .await
+        .unwrap();
     expect_problem(file, StatusCode::NOT_FOUND, "mesh.not_found").await;
-    let upload = s.upload(&dataset, "stl", io::write(&phantoms[0].mesh, Format::Stl)).await;
+    let upload = s
+        .upload(&dataset, "stl", io::write(&phantoms[0].mesh, Format::Stl))
+        .await;
     expect_problem(upload, StatusCode::NOT_FOUND, "dataset.not_found").await;
 }

@@ -33,7 +33,9 @@ impl TestServer {
         adjust(&mut config);
         config.validate().expect("valid test configuration");
         let store = Store::open(&config.database).await.expect("database opens");
-        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.expect("bind");
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+            .await
+            .expect("bind");
         let base = format!("http://{}", listener.local_addr().expect("address"));
         let shutdown = CancellationToken::new();
         let (server_store, server_shutdown) = (store.clone(), shutdown.clone());
@@ -120,7 +122,10 @@ pub async fn expect_problem(response: Response, status: StatusCode, code: &str) 
     assert_eq!(body["code"], code, "body: {body}");
     assert_eq!(body["status"], status.as_u16(), "body: {body}");
     for field in ["type", "title", "detail"] {
-        assert!(body[field].as_str().is_some_and(|s| !s.is_empty()), "no {field}: {body}");
+        assert!(
+            body[field].as_str().is_some_and(|s| !s.is_empty()),
+            "no {field}: {body}"
+        );
     }
     body
 }
