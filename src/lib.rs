@@ -8,11 +8,11 @@ pub mod api;
 pub mod cli;
 /// Service configuration from flags and `COHORTFORGE_*` environment variables.
 pub mod config;
-/// SQLite repositories for datasets, meshes (and later jobs, models, cohorts).
-pub mod store;
 /// Distances, biomarkers and clinical acceptance (pure).
 pub mod eval;
 /// Rigid registration, k-d tree queries, PCA and other shape geometry (pure).
 pub mod geometry;
 /// Triangle meshes: formats, validation, measures and phantoms (pure).
 pub mod mesh;
+/// SQLite repositories for datasets, meshes (and later jobs, models, cohorts).
+pub mod store;

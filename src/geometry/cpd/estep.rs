@@ -14,8 +14,10 @@ use crate::geometry::points::{self, dist2};
 const COLUMN_BLOCKS: usize = 16;
 /// Below this many kernel evaluations a single thread is used.
 const PARALLEL_MIN_WORK: usize = 200_000;
-/// `exp(−x)` underflows to zero beyond this.
-const EXP_UNDERFLOW: f64 = 745.0;
+/// Kernel values `exp(−x)` with `x` beyond this are set to zero: they are below 2·10⁻²² of
+/// the largest entry of the column (which is 1 after the shift), far under `f64` resolution
+/// of the column sum even for 10⁵ template points; clamping also avoids subnormals.
+const EXP_NEGLIGIBLE: f64 = 50.0;
 
 /// Sums of the posterior `P` (`[M, N]`, `P[m][n] = p(yₘ | xₙ)`), without `P` itself.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,20 +52,20 @@ impl Kernel {
     }
 
     /// Fills `k` with the unnormalised column `exp(−(‖x − zₘ‖² − d²_min)/2σ²)` (shifted so
-    /// that its largest entry is 1) and returns `(normaliser, ln of the true denominator)`:
-    /// `P[m][n] = k[m] / normaliser` and `ln(Σₘ exp(−‖x − zₘ‖²/2σ²) + c)`.
-    pub(crate) fn column(&self, moved: &[[f64; 3]], x: [f64; 3], k: &mut [f64]) -> (f64, f64) {
-        let mut d2_min = f64::INFINITY;
+    /// that its largest entry is 1) and returns `(normaliser, ln_denominator, Σₘ k[m])` with
+    /// `P[m][n] = k[m] / normaliser` and `ln_denominator = ln(Σₘ exp(−‖x − zₘ‖²/2σ²) + c)`.
+    pub(crate) fn column(&self, moved: &[[f64; 3]], x: [f64; 3], k: &mut [f64]) -> (f64, f64, f64) {
+        // Element-wise loops without reductions vectorise; reductions run over fixed lanes.
         for (km, z) in k.iter_mut().zip(moved) {
             *km = dist2(x, *z);
-            d2_min = d2_min.min(*km);
         }
-        let mut sum = 0.0;
+        let d2_min = lane_min(k);
         for km in k.iter_mut() {
             let e = (*km - d2_min) * self.inv_two_sigma2;
-            *km = if e > EXP_UNDERFLOW { 0.0 } else { (-e).exp() };
-            sum += *km;
+            let v = (-e.min(EXP_NEGLIGIBLE)).exp();
+            *km = if e > EXP_NEGLIGIBLE { 0.0 } else { v };
         }
+        let sum = lane_sum(k);
         let shift = d2_min * self.inv_two_sigma2;
         let outlier_shifted = if self.outlier > 0.0 {
             self.outlier * shift.exp()
@@ -72,12 +74,44 @@ impl Kernel {
         };
         if outlier_shifted.is_finite() {
             let normaliser = sum + outlier_shifted;
-            (normaliser, normaliser.ln() - shift)
+            (normaliser, normaliser.ln() - shift, sum)
         } else {
             // The point is so far from every centroid that it is a pure outlier.
-            (f64::INFINITY, self.outlier.ln())
+            (f64::INFINITY, self.outlier.ln(), sum)
         }
     }
+}
+
+/// Independent partial reductions, so the order of additions is fixed and loops vectorise.
+const LANES: usize = 4;
+
+/// `Σ v` over [`LANES`] interleaved partial sums.
+fn lane_sum(v: &[f64]) -> f64 {
+    let mut acc = [0.0; LANES];
+    let chunks = v.chunks_exact(LANES);
+    let tail: f64 = chunks.remainder().iter().sum();
+    for c in chunks {
+        for (a, x) in acc.iter_mut().zip(c) {
+            *a += x;
+        }
+    }
+    acc.iter().sum::<f64>() + tail
+}
+
+/// `min v` (∞ for an empty slice; inputs are never NaN here).
+fn lane_min(v: &[f64]) -> f64 {
+    let mut acc = [f64::INFINITY; LANES];
+    let chunks = v.chunks_exact(LANES);
+    let tail = chunks
+        .remainder()
+        .iter()
+        .fold(f64::INFINITY, |m, x| if *x < m { *x } else { m });
+    for c in chunks {
+        for (a, x) in acc.iter_mut().zip(c) {
+            *a = if *x < *a { *x } else { *a };
+        }
+    }
+    acc.iter().fold(tail, |m, x| if *x < m { *x } else { m })
 }
 
 /// Partial sums over one block of columns.
@@ -110,20 +144,15 @@ fn accumulate(
     };
     let mut k = vec![0.0; m];
     for x in &data[cols] {
-        let (normaliser, ln_den) = kernel.column(moved, *x, &mut k);
+        let (normaliser, ln_den, kernel_sum) = kernel.column(moved, *x, &mut k);
         part.ln_denominators += ln_den;
         let inv = 1.0 / normaliser;
-        let mut col_sum = 0.0;
         for ((km, p1), px) in k.iter().zip(&mut part.p1).zip(&mut part.px) {
-            if *km == 0.0 {
-                continue;
-            }
             let p = km * inv;
             *p1 += p;
             *px = points::add(*px, points::scale(*x, p));
-            col_sum += p;
         }
-        part.pt1.push(col_sum);
+        part.pt1.push(kernel_sum * inv);
     }
     part
 }
@@ -205,7 +234,7 @@ pub(crate) fn dense_posterior_moved(
     let mut p = vec![0.0; m * n];
     let mut k = vec![0.0; m];
     for (col, x) in data.iter().enumerate() {
-        let (normaliser, _) = kernel.column(moved, *x, &mut k);
+        let (normaliser, _, _) = kernel.column(moved, *x, &mut k);
         for (row, km) in k.iter().enumerate() {
             p[row * n + col] = km / normaliser;
         }
