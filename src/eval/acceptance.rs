@@ -12,6 +12,8 @@ use super::error::check_values;
 use super::kde::kde_mode;
 use super::stats::{mean, sample_sd};
 
+pub use super::stats::SummaryStats;
+
 /// Half-width of the mode interval in units of `B`.
 pub const MODE_INTERVAL_B: f64 = 3.0;
 /// Half-width of the mean interval in units of σ.

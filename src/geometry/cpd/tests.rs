@@ -117,6 +117,33 @@ fn recovers_with_fewer_data_points_than_template_points() {
 }
 
 #[test]
+fn tolerates_noise_and_outliers() {
+    // 0.1 mm jitter on every point and 30 uniform outliers in a 100 mm box.
+    let template = bumpy_ellipsoid(300, 14);
+    let truth = RigidTransform {
+        rotation: axis_angle([0.5, -1.0, 0.3], 0.4),
+        translation: [2.0, -3.0, 4.0],
+        scale: 1.0,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(15);
+    let mut data: Vec<[f64; 3]> = truth
+        .apply_all(&template)
+        .into_iter()
+        .map(|p| std::array::from_fn(|k| p[k] + rng.random_range(-0.1..0.1)))
+        .collect();
+    data.extend(
+        (0..30).map(|_| {
+            std::array::from_fn(|k| [50.0, -20.0, 10.0][k] + rng.random_range(-50.0..50.0))
+        }),
+    );
+    let result = rigid_cpd(&template, &data, &RigidCpdParams::default()).unwrap();
+    let rot = rotation_error(&result.transform.rotation, &truth.rotation);
+    let trans = dist2(result.transform.translation, truth.translation).sqrt();
+    assert!(rot < 5e-3, "rotation error {rot}");
+    assert!(trans < 0.2, "translation error {trans} mm");
+}
+
+#[test]
 fn multistart_recovers_a_large_rotation_that_one_start_misses() {
     let template = bumpy_ellipsoid(150, 7);
     let centre = points::centroid(&template, None);
