@@ -96,7 +96,7 @@ fn serve(config: Config) -> CliResult {
             tracing::info!("shutting down");
             on_signal.cancel();
         });
-        crate::api::serve(listener, &config, store.clone(), shutdown)
+        crate::api::run(listener, &config, store.clone(), shutdown)
             .await
             .map_err(|e| e.to_string())?;
         store.close().await;

@@ -23,7 +23,8 @@ pub struct Config {
     #[arg(long, env = "COHORTFORGE_MAX_VERTICES", default_value_t = 1_000_000)]
     pub max_vertices: usize,
 
-    /// Number of worker threads that run training jobs.
+    /// Number of worker threads that run training jobs (0: serve the API only, and let
+    /// workers of another process sharing the database run the jobs).
     #[arg(long, env = "COHORTFORGE_WORKERS", default_value_t = 1)]
     pub workers: usize,
 
@@ -85,9 +86,6 @@ impl Config {
         }
         if self.max_vertices == 0 {
             return Err(ConfigError::ZeroLimit("--max-vertices"));
-        }
-        if self.workers == 0 {
-            return Err(ConfigError::ZeroLimit("--workers"));
         }
         for (flag, token) in [
             ("--admin-token", &self.admin_token),

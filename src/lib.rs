@@ -12,7 +12,11 @@ pub mod config;
 pub mod eval;
 /// Rigid registration, k-d tree queries, PCA and other shape geometry (pure).
 pub mod geometry;
+/// Durable fit jobs and the worker pool that runs them.
+pub mod jobs;
 /// Triangle meshes: formats, validation, measures and phantoms (pure).
 pub mod mesh;
+/// Shape models (rsmp, ...) behind one interface, and virtual cohorts (pure).
+pub mod models;
 /// SQLite repositories for datasets, meshes (and later jobs, models, cohorts).
 pub mod store;

@@ -177,6 +177,20 @@ impl From<StoreError> for ApiError {
                 ),
             )
             .with("existing_mesh_id", existing_id.clone()),
+            StoreError::IdempotencyMismatch { ref existing_id } => Self::new(
+                StatusCode::CONFLICT,
+                "job.idempotency_conflict",
+                format!(
+                    "this Idempotency-Key was already used for a different request (job \
+                     {existing_id}); use a new key for a new request"
+                ),
+            )
+            .with("existing_job_id", existing_id.clone()),
+            StoreError::JobFinished { ref id, status } => Self::new(
+                StatusCode::CONFLICT,
+                "job.already_finished",
+                format!("job {id} is already {status} and cannot be cancelled"),
+            ),
             other => {
                 tracing::error!(error = %other, "storage failure");
                 Self::new(

@@ -83,7 +83,7 @@ struct UploadedFile {
     bytes: Bytes,
 }
 
-fn parse_format(field: &str, name: &str) -> Result<Format, ApiError> {
+pub(crate) fn parse_format(field: &str, name: &str) -> Result<Format, ApiError> {
     Format::from_name(name).ok_or_else(|| {
         ApiError::new(
             StatusCode::UNSUPPORTED_MEDIA_TYPE,

@@ -4,10 +4,13 @@
 //! documentation cannot drift apart.
 
 pub mod auth;
+mod cohorts;
 mod datasets;
 pub mod error;
 pub mod extract;
+mod jobs;
 mod meshes;
+mod models;
 mod ops;
 
 use std::sync::Arc;
@@ -16,6 +19,7 @@ use axum::Router;
 use axum::extract::DefaultBodyLimit;
 use axum::http::{HeaderName, Request};
 use tokio::net::TcpListener;
+use tokio::sync::Notify;
 use tokio_util::sync::CancellationToken;
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
 use tower_http::trace::TraceLayer;
@@ -25,6 +29,7 @@ use utoipa_axum::router::OpenApiRouter;
 use utoipa_swagger_ui::SwaggerUi;
 
 use crate::config::Config;
+use crate::jobs::{WorkerPool, WorkerSettings};
 use crate::mesh::io::Limits;
 use crate::mesh::validate::IngestOptions;
 use crate::store::Store;
@@ -43,11 +48,13 @@ pub struct AppState {
     pub tokens: Arc<Tokens>,
     /// Largest accepted mesh, in vertices.
     pub max_vertices: usize,
+    /// Notified when a job is queued, so idle workers start at once.
+    pub wake: Arc<Notify>,
 }
 
 impl AppState {
     /// State for a configuration and an opened store.
-    pub fn new(config: &Config, store: Store) -> Self {
+    pub fn new(config: &Config, store: Store, wake: Arc<Notify>) -> Self {
         Self {
             store,
             tokens: Arc::new(Tokens {
@@ -55,6 +62,7 @@ impl AppState {
                 read: config.read_token.clone(),
             }),
             max_vertices: config.max_vertices,
+            wake,
         }
     }
 
@@ -82,6 +90,9 @@ impl AppState {
     tags(
         (name = "datasets", description = "Collections of meshes of one organ"),
         (name = "meshes", description = "Upload, inspect and download surface meshes"),
+        (name = "jobs", description = "Queued fits of shape models, with progress"),
+        (name = "models", description = "Fitted shape models with provenance and evaluation"),
+        (name = "cohorts", description = "Virtual cohorts sampled from models, with acceptance reports"),
         (name = "ops", description = "Probes"),
     )
 )]
@@ -106,7 +117,10 @@ impl utoipa::Modify for BearerAuth {
 fn api_routes() -> (OpenApiRouter<AppState>, OpenApiRouter<AppState>) {
     let v1 = OpenApiRouter::new()
         .merge(datasets::router())
-        .merge(meshes::router());
+        .merge(meshes::router())
+        .merge(jobs::router())
+        .merge(models::router())
+        .merge(cohorts::router());
     (v1, ops::router())
 }
 
@@ -157,11 +171,36 @@ pub async fn serve(
     listener: TcpListener,
     config: &Config,
     store: Store,
+    wake: Arc<Notify>,
     shutdown: CancellationToken,
 ) -> std::io::Result<()> {
-    let state = AppState::new(config, store);
+    let state = AppState::new(config, store, wake);
     let app = app(state, config.max_body_bytes);
     axum::serve(listener, app)
         .with_graceful_shutdown(async move { shutdown.cancelled().await })
         .await
+}
+
+/// Runs the whole service on a bound listener: `config.workers` training workers and the
+/// HTTP API, until `shutdown` is cancelled; then waits for the workers to stop (a running
+/// job is handed back to the queue).
+pub async fn run(
+    listener: TcpListener,
+    config: &Config,
+    store: Store,
+    shutdown: CancellationToken,
+) -> std::io::Result<()> {
+    let wake = Arc::new(Notify::new());
+    let pool = WorkerPool::start(
+        store.clone(),
+        config.workers,
+        tokio::runtime::Handle::current(),
+        wake.clone(),
+        shutdown.clone(),
+        WorkerSettings::default(),
+    )?;
+    let served = serve(listener, config, store, wake, shutdown.clone()).await;
+    shutdown.cancel();
+    let _ = tokio::task::spawn_blocking(move || pool.join()).await;
+    served
 }

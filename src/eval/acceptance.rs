@@ -100,7 +100,8 @@ pub struct Flags {
 }
 
 impl Flags {
-    fn and(self, other: Self) -> Self {
+    /// Accepted under each criterion by both.
+    pub fn and(self, other: Self) -> Self {
         Self {
             range: self.range && other.range,
             mode: self.mode && other.mode,

@@ -23,7 +23,7 @@ pub use format::Format;
 ///
 /// Coordinates are in millimetres. Faces are counter-clockwise seen from outside, so that
 /// the enclosed volume of a closed, outward-oriented mesh is positive.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Mesh {
     /// Vertex positions in mm, `[n_vertices]` of `[x, y, z]`.
     pub vertices: Vec<[f64; 3]>,

@@ -357,6 +357,19 @@ impl Store {
         Ok(done.rows_affected() == 1)
     }
 
+    /// Gives a job back to the queue without counting the attempt (worker shutting down).
+    pub async fn release_job(&self, job_id: &str, worker: &str) -> Result<bool, StoreError> {
+        let done = sqlx::query(
+            "UPDATE jobs SET status = 'queued', lease_owner = NULL, lease_expires_at = NULL, \
+             attempts = MAX(attempts - 1, 0) WHERE id = ? AND lease_owner = ? AND status = 'running'",
+        )
+        .bind(job_id)
+        .bind(worker)
+        .execute(&self.write)
+        .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
     /// Requests cancellation: a queued job is cancelled at once, a running one at its next
     /// checkpoint. A finished job cannot be cancelled.
     pub async fn cancel_job(&self, id: &str) -> Result<Job, StoreError> {

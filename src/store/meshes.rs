@@ -190,6 +190,21 @@ impl Store {
         Ok((items, total))
     }
 
+    /// Ids and SHA-256 of a dataset's meshes in upload order.
+    pub async fn dataset_mesh_hashes(
+        &self,
+        dataset_id: &str,
+    ) -> Result<Vec<(String, String)>, StoreError> {
+        self.dataset(dataset_id).await?;
+        let rows = sqlx::query("SELECT id, sha256 FROM meshes WHERE dataset_id = ? ORDER BY seq")
+            .bind(dataset_id)
+            .fetch_all(&self.read)
+            .await?;
+        rows.iter()
+            .map(|r| Ok((r.try_get("id")?, r.try_get("sha256")?)))
+            .collect()
+    }
+
     /// Deletes one mesh.
     pub async fn delete_mesh(&self, id: &str) -> Result<(), StoreError> {
         let done = sqlx::query("DELETE FROM meshes WHERE id = ?")

@@ -3,10 +3,12 @@
 //! One writer connection (SQLite allows one writer at a time; a single connection avoids
 //! `SQLITE_BUSY`) and a small pool of readers, both in WAL mode with foreign keys on.
 
+pub mod cohorts;
 pub mod datasets;
 mod error;
 pub mod jobs;
 pub mod meshes;
+pub mod models;
 
 use std::path::Path;
 use std::str::FromStr;

@@ -4,6 +4,7 @@ mod architecture;
 mod auth;
 mod bad_uploads;
 mod datasets;
+mod jobs;
 mod meshes;
 mod openapi;
 mod support;

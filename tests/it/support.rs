@@ -40,7 +40,7 @@ impl TestServer {
         let shutdown = CancellationToken::new();
         let (server_store, server_shutdown) = (store.clone(), shutdown.clone());
         tokio::spawn(async move {
-            cohortforge::api::serve(listener, &config, server_store, server_shutdown)
+            cohortforge::api::run(listener, &config, server_store, server_shutdown)
                 .await
                 .expect("server runs");
         });

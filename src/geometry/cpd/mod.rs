@@ -234,8 +234,31 @@ pub fn rigid_cpd_from(
 ) -> Result<CpdResult, GeometryError> {
     check_inputs(template, data, params)?;
     let c = Centred::new(template, data);
-    let mut transform = c.to_centred(initial);
-    let mut sigma2 = c.initial_sigma2(&transform.apply_all(&c.y));
+    let transform = c.to_centred(initial);
+    let sigma2 = c.initial_sigma2(&transform.apply_all(&c.y));
+    em_loop(&c, transform, sigma2, params)
+}
+
+/// Rigid CPD warm-started from `initial` with the variance `sigma2` (mm²) of an earlier
+/// registration (e.g. of subsampled clouds), so that it needs only a few iterations.
+pub fn rigid_cpd_warm(
+    template: &[[f64; 3]],
+    data: &[[f64; 3]],
+    params: &RigidCpdParams,
+    initial: &RigidTransform,
+    sigma2: f64,
+) -> Result<CpdResult, GeometryError> {
+    check_inputs(template, data, params)?;
+    let c = Centred::new(template, data);
+    em_loop(&c, c.to_centred(initial), sigma2, params)
+}
+
+fn em_loop(
+    c: &Centred,
+    mut transform: RigidTransform,
+    mut sigma2: f64,
+    params: &RigidCpdParams,
+) -> Result<CpdResult, GeometryError> {
     if !(sigma2.is_finite() && sigma2 > 0.0) {
         return Err(GeometryError::DegenerateInput("all points coincide".into()));
     }
@@ -249,7 +272,7 @@ pub fn rigid_cpd_from(
             break;
         }
         previous_nll = nll;
-        let Some((next, next_sigma2)) = m_step(&c, &sums, params.scale)? else {
+        let Some((next, next_sigma2)) = m_step(c, &sums, params.scale)? else {
             break;
         };
         iterations += 1;

@@ -1,0 +1,200 @@
+//! `/v1/models`: fitted models with provenance and evaluation; atlas download.
+
+use axum::extract::State;
+use axum::http::StatusCode;
+use axum::response::Response;
+use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
+use utoipa_axum::router::OpenApiRouter;
+use utoipa_axum::routes;
+
+use super::AppState;
+use super::error::{ApiError, Problem};
+use super::extract::{Json, PageQuery, Paginated, Path, Query};
+use super::meshes::{MeshFile, mesh_file_response, parse_format};
+use crate::mesh::{self, Format};
+use crate::models::AnyModel;
+use crate::store::models::{ModelRecord, Provenance};
+
+pub(super) fn router() -> OpenApiRouter<AppState> {
+    OpenApiRouter::new()
+        .routes(routes!(list_models))
+        .routes(routes!(get_model, delete_model))
+        .routes(routes!(download_atlas))
+}
+
+/// A fitted model.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ModelView {
+    /// Identifier.
+    pub id: String,
+    /// Model type, e.g. `rsmp`.
+    pub model_type: String,
+    /// Parameters with defaults filled in.
+    #[schema(value_type = Object)]
+    pub params: serde_json::Value,
+    /// Seed of the fit.
+    pub seed: u64,
+    /// Dataset it was fitted to.
+    pub dataset_id: String,
+    /// Job that fitted it.
+    pub job_id: String,
+    /// Training and held-out meshes with their checksums.
+    pub provenance: Provenance,
+    /// The atlas (template): `{vertex_count, face_count}`.
+    #[schema(value_type = Object)]
+    pub atlas: serde_json::Value,
+    /// Quality in mm: `generalisation`, `specificity`, `matching`, each `{hd, ed, ed_star, cd}`
+    /// of `{mean, std}`; generalisation and matching on the held-out meshes.
+    #[schema(value_type = Object)]
+    pub evaluation: serde_json::Value,
+    /// Cumulative explained variance per mode (PCA models).
+    #[schema(value_type = Option<Vec<f64>>)]
+    pub explained_variance: serde_json::Value,
+    /// Modes kept (PCA models).
+    #[schema(value_type = Option<u64>)]
+    pub n_modes: serde_json::Value,
+    /// Training meshes used.
+    #[schema(value_type = u64)]
+    pub training_count: serde_json::Value,
+    /// Held-out meshes evaluated.
+    #[schema(value_type = u64)]
+    pub holdout_count: serde_json::Value,
+    /// Seconds per stage of the fit: `[{stage, seconds}]`.
+    #[schema(value_type = Vec<Object>)]
+    pub timings: serde_json::Value,
+    /// Creation time (RFC 3339, UTC).
+    pub created_at: String,
+}
+
+impl From<ModelRecord> for ModelView {
+    fn from(r: ModelRecord) -> Self {
+        let field = |name: &str| {
+            r.summary
+                .get(name)
+                .cloned()
+                .unwrap_or(serde_json::Value::Null)
+        };
+        Self {
+            atlas: field("atlas"),
+            evaluation: field("evaluation"),
+            explained_variance: field("explained_variance"),
+            n_modes: field("n_modes"),
+            training_count: field("training_count"),
+            holdout_count: field("holdout_count"),
+            timings: field("timings"),
+            id: r.id,
+            model_type: r.model_type,
+            params: r.params,
+            seed: r.seed,
+            dataset_id: r.dataset_id,
+            job_id: r.job_id,
+            provenance: r.provenance,
+            created_at: r.created_at,
+        }
+    }
+}
+
+/// List models, newest first.
+#[utoipa::path(
+    get, path = "/v1/models", tag = "models", params(PageQuery),
+    responses((status = 200, description = "A page of models", body = Paginated<ModelView>))
+)]
+async fn list_models(
+    State(state): State<AppState>,
+    Query(q): Query<PageQuery>,
+) -> Result<Json<Paginated<ModelView>>, ApiError> {
+    let page = q.page()?;
+    let (items, total) = state.store.models(page).await?;
+    Ok(Json(Paginated::new(
+        items.into_iter().map(ModelView::from).collect(),
+        total,
+        page,
+    )))
+}
+
+/// Get a model with its provenance and evaluation.
+#[utoipa::path(
+    get, path = "/v1/models/{id}", tag = "models",
+    params(("id" = String, Path, description = "Model id")),
+    responses(
+        (status = 200, description = "The model", body = ModelView),
+        (status = 404, description = "No such model", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn get_model(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Json<ModelView>, ApiError> {
+    Ok(Json(state.store.model(&id).await?.into()))
+}
+
+/// Delete a model and its cohorts.
+#[utoipa::path(
+    delete, path = "/v1/models/{id}", tag = "models",
+    params(("id" = String, Path, description = "Model id")),
+    responses(
+        (status = 204, description = "Deleted"),
+        (status = 404, description = "No such model", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn delete_model(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<StatusCode, ApiError> {
+    state.store.delete_model(&id).await?;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+/// Query of a mesh download.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+#[serde(deny_unknown_fields)]
+pub struct FormatQuery {
+    /// Output format: `obj` (default), `stl`, `ply` or `vtk`.
+    pub format: Option<String>,
+}
+
+impl FormatQuery {
+    /// The requested format, OBJ by default.
+    pub fn format(&self) -> Result<Format, ApiError> {
+        self.format
+            .as_deref()
+            .map_or(Ok(Format::Obj), |f| parse_format("format", f))
+    }
+}
+
+/// Loads and decodes a stored model off the async runtime.
+pub(super) async fn load_model(
+    state: &AppState,
+    id: &str,
+) -> Result<(AnyModel, serde_json::Value), ApiError> {
+    let (payload, reference) = state.store.model_payload(id).await?;
+    let model = tokio::task::spawn_blocking(move || AnyModel::from_bytes(&payload))
+        .await
+        .map_err(|e| ApiError::internal(e.to_string()))?
+        .map_err(|e| ApiError::internal(format!("model {id}: {e}")))?;
+    Ok((model, reference))
+}
+
+/// Download the model's atlas (template) mesh.
+#[utoipa::path(
+    get, path = "/v1/models/{id}/atlas", tag = "models",
+    params(("id" = String, Path, description = "Model id"), FormatQuery),
+    responses(
+        (status = 200, description = "The atlas mesh", content(
+            (MeshFile = "model/obj"), (MeshFile = "model/stl"),
+            (MeshFile = "application/x-ply"), (MeshFile = "application/vnd.vtk"))),
+        (status = 404, description = "No such model", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn download_atlas(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    Query(q): Query<FormatQuery>,
+) -> Result<Response, ApiError> {
+    let format = q.format()?;
+    let (model, _) = load_model(&state, &id).await?;
+    let bytes = mesh::io::write(model.shape_model().atlas(), format);
+    Ok(mesh_file_response(&format!("atlas_{id}"), format, bytes))
+}

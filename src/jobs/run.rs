@@ -1,0 +1,117 @@
+//! Running one fit job: load its meshes, split them, fit, and describe the model to store.
+
+use tokio::runtime::Handle;
+
+use super::params::ModelParams;
+use super::split::holdout_split;
+use crate::mesh::Mesh;
+use crate::models::progress::Progress;
+use crate::models::{FitOutcome, ModelError, ModelType, rsmp};
+use crate::store::jobs::Job;
+use crate::store::models::{NewModel, Provenance};
+use crate::store::{Store, StoreError};
+
+/// Why a job did not produce a model.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The fit failed or was cancelled.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The job's data could not be read.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// The job record is unusable (e.g. a model type this version does not know).
+    #[error("{0}")]
+    Invalid(String),
+}
+
+struct Split {
+    training: Vec<Mesh>,
+    holdout: Vec<Mesh>,
+    provenance: Provenance,
+    template_index: Option<usize>,
+}
+
+fn load_split(
+    handle: &Handle,
+    store: &Store,
+    job: &Job,
+    template: Option<&str>,
+) -> Result<Split, RunError> {
+    let meshes = handle.block_on(store.dataset_mesh_hashes(&job.dataset_id))?;
+    let ids: Vec<String> = meshes.iter().map(|(id, _)| id.clone()).collect();
+    let (training_ids, holdout_ids) = holdout_split(&ids, job.holdout_fraction, job.seed, template);
+    let sha = |wanted: &[String]| -> Vec<String> {
+        wanted
+            .iter()
+            .filter_map(|w| {
+                meshes
+                    .iter()
+                    .find(|(id, _)| id == w)
+                    .map(|(_, s)| s.clone())
+            })
+            .collect()
+    };
+    let load = |wanted: &[String]| -> Result<Vec<Mesh>, StoreError> {
+        wanted
+            .iter()
+            .map(|id| handle.block_on(store.mesh_geometry(id)))
+            .collect()
+    };
+    let template_index = match template {
+        Some(t) => Some(training_ids.iter().position(|id| id == t).ok_or_else(|| {
+            RunError::Invalid(format!(
+                "template mesh {t} is no longer in dataset {}",
+                job.dataset_id
+            ))
+        })?),
+        None => None,
+    };
+    Ok(Split {
+        training: load(&training_ids)?,
+        holdout: load(&holdout_ids)?,
+        provenance: Provenance {
+            training_sha256: sha(&training_ids),
+            holdout_sha256: sha(&holdout_ids),
+            training_mesh_ids: training_ids,
+            holdout_mesh_ids: holdout_ids,
+        },
+        template_index,
+    })
+}
+
+/// Fits the model of `job`; blocking, to be called on a worker thread.
+pub fn run_job(
+    handle: &Handle,
+    store: &Store,
+    job: &Job,
+    progress: &mut dyn Progress,
+) -> Result<NewModel, RunError> {
+    let model_type = ModelType::from_name(&job.model_type)
+        .ok_or_else(|| RunError::Invalid(format!("unknown model type {}", job.model_type)))?;
+    let params = ModelParams::parse(model_type, &job.params)?;
+    let split = load_split(handle, store, job, params.template_mesh_id())?;
+    let outcome: FitOutcome = match &params {
+        ModelParams::Rsmp(p) => rsmp::fit(
+            &split.training,
+            &split.holdout,
+            p,
+            split.template_index,
+            job.seed,
+            progress,
+        )?,
+    };
+    let json = |v: Result<serde_json::Value, serde_json::Error>| {
+        v.map_err(|e| RunError::Invalid(e.to_string()))
+    };
+    Ok(NewModel {
+        model_type: job.model_type.clone(),
+        params: params.to_json(),
+        seed: job.seed,
+        dataset_id: job.dataset_id.clone(),
+        provenance: split.provenance,
+        summary: json(serde_json::to_value(&outcome.summary))?,
+        reference: json(serde_json::to_value(&outcome.reference))?,
+        payload: outcome.model.to_bytes()?,
+    })
+}

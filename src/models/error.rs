@@ -1,0 +1,79 @@
+//! Errors of model fitting and sampling.
+
+use super::progress::Cancelled;
+use crate::eval::EvalError;
+use crate::geometry::GeometryError;
+
+/// What can stop a fit or a cohort.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    /// A parameter has an invalid value.
+    #[error("params.{field}: {message}")]
+    InvalidParams {
+        /// The parameter.
+        field: String,
+        /// What is wrong and what is allowed.
+        message: String,
+    },
+    /// The training split is too small.
+    #[error(
+        "the model needs at least {required} training meshes but the split leaves {found}; \
+         upload more meshes or lower holdout_fraction"
+    )]
+    TooFewMeshes {
+        /// Least number of training meshes.
+        required: usize,
+        /// Training meshes available.
+        found: usize,
+    },
+    /// Acceptance sampling could not find enough accepted members.
+    #[error(
+        "only {accepted} of {draws} draws passed the {criterion} criterion, short of the \
+         {size} asked for; lower size, use a wider criterion (range) or turn off only_accepted"
+    )]
+    AcceptanceUnreachable {
+        /// Members asked for.
+        size: usize,
+        /// Accepted members found.
+        accepted: usize,
+        /// Draws made (the bound).
+        draws: usize,
+        /// The criterion.
+        criterion: &'static str,
+    },
+    /// Geometry failed (registration, PCA, distances).
+    #[error(transparent)]
+    Geometry(#[from] GeometryError),
+    /// Evaluation failed (biomarkers, statistics).
+    #[error(transparent)]
+    Eval(#[from] EvalError),
+    /// The job was cancelled.
+    #[error(transparent)]
+    Cancelled(#[from] Cancelled),
+    /// A stored model could not be decoded.
+    #[error("stored model is corrupt: {0}")]
+    Corrupt(String),
+}
+
+impl ModelError {
+    /// Stable code.
+    pub fn code(&self) -> &'static str {
+        match self {
+            Self::InvalidParams { .. } => "model.invalid_params",
+            Self::TooFewMeshes { .. } => "model.too_few_meshes",
+            Self::AcceptanceUnreachable { .. } => "cohort.acceptance_unreachable",
+            Self::Geometry(e) => e.code(),
+            Self::Eval(e) => e.code(),
+            Self::Cancelled(_) => "job.cancelled",
+            Self::Corrupt(_) => "model.corrupt",
+        }
+    }
+
+    /// An invalid parameter.
+    pub fn invalid(field: &str, message: impl Into<String>) -> Self {
+        Self::InvalidParams {
+            field: field.to_owned(),
+            message: message.into(),
+        }
+    }
+}

@@ -1,0 +1,142 @@
+//! Shape models behind one interface: fit on training meshes, sample new shapes,
+//! reconstruct unseen ones. Pure: no async, SQL or HTTP.
+//!
+//! Model types: `rsmp` (rigid CPD + soft correspondences + PCA, thesis ch. 3).
+
+pub mod alignment;
+pub mod cohort;
+mod error;
+pub mod evaluation;
+pub mod progress;
+pub mod reference;
+pub mod rsmp;
+
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+pub use error::ModelError;
+pub use evaluation::Evaluation;
+pub use reference::ReferencePopulation;
+
+use crate::geometry::pca::Sampling;
+use crate::mesh::Mesh;
+
+/// Kinds of shape model a job can fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ModelType {
+    /// Rigid CPD to a template, soft-correspondence normalisation, PCA.
+    Rsmp,
+}
+
+impl ModelType {
+    /// Every model type.
+    pub const ALL: [ModelType; 1] = [ModelType::Rsmp];
+
+    /// The name used in the API.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Rsmp => "rsmp",
+        }
+    }
+
+    /// From its API name.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|t| t.as_str() == name)
+    }
+}
+
+/// A model's reconstruction of a mesh.
+#[derive(Debug, Clone)]
+pub struct Reconstruction {
+    /// The reconstructed shape: the model's connectivity, mm, model frame.
+    pub mesh: Mesh,
+    /// The input's normalised shape (before projection), `[n_atlas_vertices, 3]`, mm.
+    pub normalised: Vec<[f64; 3]>,
+    /// The input's vertices moved into the model frame, `[n_vertices, 3]`, mm.
+    pub aligned_input: Vec<[f64; 3]>,
+}
+
+/// What every fitted model can do.
+pub trait ShapeModel {
+    /// The atlas (template) mesh in the model frame, mm.
+    fn atlas(&self) -> &Mesh;
+    /// Draws one new shape (mm, atlas connectivity).
+    fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Mesh, ModelError>;
+    /// Reconstructs an unseen mesh through the model.
+    fn reconstruct(&self, mesh: &Mesh) -> Result<Reconstruction, ModelError>;
+}
+
+/// A fitted model of any type, as stored.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub enum AnyModel {
+    /// See [`rsmp::RsmpModel`].
+    Rsmp(rsmp::RsmpModel),
+}
+
+impl AnyModel {
+    /// The model behind the common interface.
+    pub fn shape_model(&self) -> &dyn ShapeModel {
+        match self {
+            Self::Rsmp(m) => m,
+        }
+    }
+
+    /// Compact binary form for storage.
+    pub fn to_bytes(&self) -> Result<Vec<u8>, ModelError> {
+        postcard::to_stdvec(self).map_err(|e| ModelError::Corrupt(e.to_string()))
+    }
+
+    /// From [`AnyModel::to_bytes`].
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, ModelError> {
+        postcard::from_bytes(bytes).map_err(|e| ModelError::Corrupt(e.to_string()))
+    }
+}
+
+/// Atlas facts reported with a model.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct AtlasInfo {
+    /// Vertices of the atlas.
+    pub vertex_count: usize,
+    /// Triangles of the atlas.
+    pub face_count: usize,
+}
+
+/// Time spent in one stage of the fit.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct StageTiming {
+    /// Stage name.
+    pub stage: String,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+/// Everything reported about a fitted model besides its parameters.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ModelSummary {
+    /// The atlas.
+    pub atlas: AtlasInfo,
+    /// Quality on held-out and generated shapes.
+    pub evaluation: Evaluation,
+    /// Cumulative explained variance per mode (PCA models).
+    pub explained_variance: Option<Vec<f64>>,
+    /// Modes kept (PCA models).
+    pub n_modes: Option<usize>,
+    /// Training meshes used.
+    pub training_count: usize,
+    /// Held-out meshes evaluated.
+    pub holdout_count: usize,
+    /// Time per stage.
+    pub timings: Vec<StageTiming>,
+}
+
+/// A fit's result: the model, its summary and the reference population.
+#[derive(Debug, Clone)]
+pub struct FitOutcome {
+    /// The fitted model.
+    pub model: AnyModel,
+    /// Atlas, evaluation, timings.
+    pub summary: ModelSummary,
+    /// Biomarkers of the training population.
+    pub reference: ReferencePopulation,
+}

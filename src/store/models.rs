@@ -1,0 +1,193 @@
+//! Fitted models with provenance, evaluation and reference population, and the job
+//! completion that stores them.
+
+use serde::{Deserialize, Serialize};
+use sqlx::sqlite::SqliteRow;
+use sqlx::{AssertSqlSafe, Row};
+use utoipa::ToSchema;
+
+use super::{Page, Store, StoreError, new_id, now};
+
+/// Where a model's training data came from.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct Provenance {
+    /// Meshes the model was fitted to, in order.
+    pub training_mesh_ids: Vec<String>,
+    /// Meshes held out for evaluation.
+    pub holdout_mesh_ids: Vec<String>,
+    /// SHA-256 of each training mesh's geometry, in `training_mesh_ids` order.
+    pub training_sha256: Vec<String>,
+    /// SHA-256 of each held-out mesh's geometry.
+    pub holdout_sha256: Vec<String>,
+}
+
+/// A model to store when its job succeeds.
+#[derive(Debug, Clone)]
+pub struct NewModel {
+    /// Model type.
+    pub model_type: String,
+    /// Parameters with defaults filled in.
+    pub params: serde_json::Value,
+    /// Seed of the fit.
+    pub seed: u64,
+    /// Dataset it was fitted to.
+    pub dataset_id: String,
+    /// Training and holdout meshes.
+    pub provenance: Provenance,
+    /// Atlas, evaluation, explained variance, timings (JSON).
+    pub summary: serde_json::Value,
+    /// Biomarkers of the training population (JSON).
+    pub reference: serde_json::Value,
+    /// The fitted model in binary form.
+    pub payload: Vec<u8>,
+}
+
+/// A stored model's metadata.
+#[derive(Debug, Clone)]
+pub struct ModelRecord {
+    /// Identifier.
+    pub id: String,
+    /// Job that fitted it.
+    pub job_id: String,
+    /// Dataset it was fitted to.
+    pub dataset_id: String,
+    /// Model type.
+    pub model_type: String,
+    /// Parameters with defaults filled in.
+    pub params: serde_json::Value,
+    /// Seed of the fit.
+    pub seed: u64,
+    /// Training and holdout meshes.
+    pub provenance: Provenance,
+    /// Atlas, evaluation, explained variance, timings.
+    pub summary: serde_json::Value,
+    /// Creation time (RFC 3339, UTC).
+    pub created_at: String,
+}
+
+const SELECT_MODEL: &str = "SELECT id, job_id, dataset_id, model_type, params, seed, \
+     provenance, summary, created_at FROM models";
+
+fn json<T: serde::de::DeserializeOwned>(row: &SqliteRow, column: &str) -> Result<T, StoreError> {
+    let text: String = row.try_get(column)?;
+    serde_json::from_str(&text).map_err(|e| StoreError::Corrupt(format!("models.{column}: {e}")))
+}
+
+fn model(row: &SqliteRow) -> Result<ModelRecord, StoreError> {
+    Ok(ModelRecord {
+        id: row.try_get("id")?,
+        job_id: row.try_get("job_id")?,
+        dataset_id: row.try_get("dataset_id")?,
+        model_type: row.try_get("model_type")?,
+        params: json(row, "params")?,
+        seed: row.try_get::<i64, _>("seed")? as u64,
+        provenance: json(row, "provenance")?,
+        summary: json(row, "summary")?,
+        created_at: row.try_get("created_at")?,
+    })
+}
+
+fn to_text<T: Serialize>(value: &T) -> Result<String, StoreError> {
+    serde_json::to_string(value).map_err(|e| StoreError::Corrupt(e.to_string()))
+}
+
+impl Store {
+    /// Stores the model of a job held by `worker` and marks the job succeeded, atomically.
+    /// Returns `None` (and stores nothing) when the worker lost its lease.
+    pub async fn complete_job(
+        &self,
+        job_id: &str,
+        worker: &str,
+        new: NewModel,
+    ) -> Result<Option<String>, StoreError> {
+        let mut tx = self.write.begin().await?;
+        let id = new_id();
+        let held = sqlx::query(
+            "UPDATE jobs SET status = 'succeeded', model_id = ?, finished_at = ?, \
+             lease_owner = NULL, lease_expires_at = NULL, \
+             progress = json_set(progress, '$.fraction', 1.0, '$.stage', 'done', \
+                                 '$.message', 'model stored') \
+             WHERE id = ? AND lease_owner = ? AND status = 'running'",
+        )
+        .bind(&id)
+        .bind(now())
+        .bind(job_id)
+        .bind(worker)
+        .execute(&mut *tx)
+        .await?
+        .rows_affected();
+        if held == 0 {
+            return Ok(None);
+        }
+        sqlx::query(
+            "INSERT INTO models (id, job_id, dataset_id, model_type, params, seed, provenance, \
+             summary, reference, payload, created_at, seq) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, \
+             (SELECT COALESCE(MAX(seq), 0) + 1 FROM models))",
+        )
+        .bind(&id)
+        .bind(job_id)
+        .bind(&new.dataset_id)
+        .bind(&new.model_type)
+        .bind(new.params.to_string())
+        .bind(new.seed as i64)
+        .bind(to_text(&new.provenance)?)
+        .bind(new.summary.to_string())
+        .bind(new.reference.to_string())
+        .bind(new.payload)
+        .bind(now())
+        .execute(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok(Some(id))
+    }
+
+    /// One model's metadata.
+    pub async fn model(&self, id: &str) -> Result<ModelRecord, StoreError> {
+        let row = sqlx::query(AssertSqlSafe(format!("{SELECT_MODEL} WHERE id = ?")))
+            .bind(id)
+            .fetch_optional(&self.read)
+            .await?
+            .ok_or_else(|| StoreError::not_found("model", id))?;
+        model(&row)
+    }
+
+    /// A model's binary payload and reference population (JSON).
+    pub async fn model_payload(
+        &self,
+        id: &str,
+    ) -> Result<(Vec<u8>, serde_json::Value), StoreError> {
+        let row = sqlx::query("SELECT payload, reference FROM models WHERE id = ?")
+            .bind(id)
+            .fetch_optional(&self.read)
+            .await?
+            .ok_or_else(|| StoreError::not_found("model", id))?;
+        Ok((row.try_get("payload")?, json(&row, "reference")?))
+    }
+
+    /// A page of models, newest first.
+    pub async fn models(&self, page: Page) -> Result<(Vec<ModelRecord>, i64), StoreError> {
+        let rows = sqlx::query(AssertSqlSafe(format!(
+            "{SELECT_MODEL} ORDER BY seq DESC LIMIT ? OFFSET ?"
+        )))
+        .bind(page.limit)
+        .bind(page.offset)
+        .fetch_all(&self.read)
+        .await?;
+        let total: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM models")
+            .fetch_one(&self.read)
+            .await?;
+        Ok((rows.iter().map(model).collect::<Result<_, _>>()?, total))
+    }
+
+    /// Deletes a model and its cohorts.
+    pub async fn delete_model(&self, id: &str) -> Result<(), StoreError> {
+        let done = sqlx::query("DELETE FROM models WHERE id = ?")
+            .bind(id)
+            .execute(&self.write)
+            .await?;
+        if done.rows_affected() == 0 {
+            return Err(StoreError::not_found("model", id));
+        }
+        Ok(())
+    }
+}
