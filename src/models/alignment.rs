@@ -146,29 +146,48 @@ mod tests {
     use crate::geometry::points::{axis_angle, mat_vec};
     use crate::mesh::phantom::{self, Family};
 
-    #[test]
-    fn registration_recovers_a_large_rotation_of_a_phantom() {
-        let lv = &phantom::generate(Family::Lv, 1, 4)[0].mesh;
-        let rotation = axis_angle([0.3, -0.8, 0.52], 2.6);
-        let moved: Vec<[f64; 3]> = lv
-            .vertices
+    /// Largest distance (mm) between `T(p)` and the moved point, over all vertices.
+    fn worst_residual(result: &CpdResult, original: &[[f64; 3]], moved: &[[f64; 3]]) -> f64 {
+        original
             .iter()
-            .map(|p| {
-                let r = mat_vec(&rotation, *p);
-                [r[0] + 40.0, r[1] - 25.0, r[2] + 10.0]
-            })
-            .collect();
-        let result = register(&lv.vertices, &moved, &AlignmentParams::default()).unwrap();
-        let worst = lv
-            .vertices
-            .iter()
-            .zip(&moved)
+            .zip(moved)
             .map(|(p, q)| {
                 let a = result.transform.apply(*p);
                 ((a[0] - q[0]).powi(2) + (a[1] - q[1]).powi(2) + (a[2] - q[2]).powi(2)).sqrt()
             })
-            .fold(0.0, f64::max);
+            .fold(0.0, f64::max)
+    }
+
+    fn moved(mesh: &Mesh, scale: f64) -> Vec<[f64; 3]> {
+        let rotation = axis_angle([0.3, -0.8, 0.52], 2.6);
+        mesh.vertices
+            .iter()
+            .map(|p| {
+                let r = mat_vec(&rotation, *p);
+                [scale * r[0] + 40.0, scale * r[1] - 25.0, scale * r[2] + 10.0]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn registration_recovers_a_large_rotation_of_a_phantom() {
+        let lv = &phantom::generate(Family::Lv, 1, 4)[0].mesh;
+        let target = moved(lv, 1.0);
+        let result = register(&lv.vertices, &target, &AlignmentParams::default()).unwrap();
+        let worst = worst_residual(&result, &lv.vertices, &target);
         assert!(worst < 1e-3, "largest residual {worst} mm");
+    }
+
+    #[test]
+    fn registration_with_scale_recovers_a_scaled_phantom() {
+        let liver = &phantom::generate(Family::Liver, 1, 6)[0].mesh;
+        let target = moved(liver, 1.15);
+        let mut params = AlignmentParams::default();
+        params.cpd.scale = true;
+        let result = register(&liver.vertices, &target, &params).unwrap();
+        assert!((result.transform.scale - 1.15).abs() < 1e-3, "scale {}", result.transform.scale);
+        let worst = worst_residual(&result, &liver.vertices, &target);
+        assert!(worst < 1e-3 * 100.0, "largest residual {worst} mm");
     }
 
     #[test]
