@@ -14,5 +14,7 @@ pub mod eval;
 pub mod geometry;
 /// Triangle meshes: formats, validation, measures and phantoms (pure).
 pub mod mesh;
+/// NIfTI label volumes to closed surface meshes: labels, components, marching cubes (pure).
+pub mod segmentation;
 /// SQLite repositories for datasets, meshes (and later jobs, models, cohorts).
 pub mod store;
