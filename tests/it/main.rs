@@ -4,6 +4,7 @@ mod architecture;
 mod auth;
 mod bad_uploads;
 mod datasets;
+mod kits19;
 mod meshes;
 mod openapi;
 mod support;
