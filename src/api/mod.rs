@@ -9,6 +9,7 @@ pub mod error;
 pub mod extract;
 mod meshes;
 mod ops;
+pub mod upload;
 
 use std::sync::Arc;
 

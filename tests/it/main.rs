@@ -6,5 +6,6 @@ mod bad_uploads;
 mod datasets;
 mod kits19;
 mod meshes;
+mod nifti;
 mod openapi;
 mod support;
