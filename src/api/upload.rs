@@ -2,10 +2,13 @@
 //! volumes become surfaces, and either may be simplified. Runs off the async runtime.
 
 use axum::body::Bytes;
+use axum::extract::{FromRequest, Multipart, Request};
 use axum::http::StatusCode;
 use serde_json::{Map, Value, json};
 
+use super::AppState;
 use super::error::ApiError;
+use super::meshes::UploadQuery;
 use crate::mesh::simplify::simplify;
 use crate::mesh::validate::{IngestOptions, Ingested, validate};
 use crate::mesh::{self, Format};
@@ -89,6 +92,98 @@ impl From<NiftiError> for ApiError {
             NiftiError::InvalidOption(e) => ApiError::invalid_field(e.field, e.message),
             other => ApiError::new(status, other.code(), other.to_string()),
         }
+    }
+}
+
+pub(super) fn parse_input_kind(name: &str) -> Result<InputKind, ApiError> {
+    InputKind::from_name(name).ok_or_else(|| {
+        ApiError::new(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "mesh.unsupported_format",
+            format!(
+                "format '{name}' is not a supported upload format; use obj, stl, ply, vtk or nifti"
+            ),
+        )
+        .with("field", "format")
+    })
+}
+
+pub(super) fn unsupported_content_type(found: Option<&str>) -> ApiError {
+    ApiError::new(
+        StatusCode::UNSUPPORTED_MEDIA_TYPE,
+        "mesh.unsupported_format",
+        format!(
+            "cannot tell the file format from Content-Type {}; send model/obj, model/stl, \
+             application/x-ply, application/vnd.vtk or application/x-nifti, add \
+             ?format=obj|stl|ply|vtk|nifti, or upload multipart/form-data",
+            found.map_or("(none)".to_owned(), |c| format!("'{c}'"))
+        ),
+    )
+}
+
+/// The `file` parts of a multipart upload, each with its kind and name.
+pub(super) async fn read_multipart(
+    state: &AppState,
+    query: &UploadQuery,
+    request: Request,
+) -> Result<Vec<UploadedFile>, ApiError> {
+    let default_kind = query.format.as_deref().map(parse_input_kind).transpose()?;
+    let mut multipart = Multipart::from_request(request, state).await.map_err(|r| {
+        ApiError::new(
+            StatusCode::BAD_REQUEST,
+            "request.unreadable_body",
+            r.body_text(),
+        )
+    })?;
+    let mut files = Vec::new();
+    while let Some(field) = multipart.next_field().await? {
+        let part = files.len();
+        let field_name = field.name().unwrap_or_default().to_owned();
+        if !matches!(field_name.as_str(), "file" | "files" | "file[]" | "files[]") {
+            return Err(ApiError::new(
+                StatusCode::UNPROCESSABLE_ENTITY,
+                "request.unexpected_part",
+                format!(
+                    "multipart part '{field_name}' is not expected; send each file as a part named 'file'"
+                ),
+            ));
+        }
+        let file_name = field.file_name().unwrap_or_default().to_owned();
+        let kind = InputKind::from_file_name(&file_name)
+            .or_else(|| field.content_type().and_then(InputKind::from_content_type))
+            .or(default_kind)
+            .ok_or_else(|| {
+                unsupported_content_type(field.content_type())
+                    .with("part", part)
+                    .with("filename", file_name.clone())
+            })?;
+        let name = file_stem(&file_name);
+        if !name.is_empty() {
+            super::meshes::check_name(&name)?;
+        }
+        let bytes = field.bytes().await?;
+        files.push(UploadedFile { name, kind, bytes });
+    }
+    if files.is_empty() {
+        return Err(ApiError::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "request.no_files",
+            "the multipart body holds no 'file' part; attach at least one mesh or NIfTI file",
+        ));
+    }
+    Ok(files)
+}
+
+/// The file name without directories and extension (`.nii.gz` counts as one).
+fn file_stem(file_name: &str) -> String {
+    let base = file_name.rsplit(['/', '\\']).next().unwrap_or_default();
+    let base = match base.len().checked_sub(".gz".len()) {
+        Some(cut) if base.to_ascii_lowercase().ends_with(".nii.gz") => &base[..cut],
+        _ => base,
+    };
+    match base.rsplit_once('.') {
+        Some((stem, _)) if !stem.is_empty() => stem.to_owned(),
+        _ => base.to_owned(),
     }
 }
 
