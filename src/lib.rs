@@ -18,5 +18,7 @@ pub mod jobs;
 pub mod mesh;
 /// Shape models (rsmp, ...) behind one interface, and virtual cohorts (pure).
 pub mod models;
+/// NIfTI label volumes to closed surface meshes: labels, components, marching cubes (pure).
+pub mod segmentation;
 /// SQLite repositories for datasets, meshes (and later jobs, models, cohorts).
 pub mod store;

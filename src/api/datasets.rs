@@ -27,6 +27,10 @@ pub struct CreateDataset {
     /// Organ the meshes show (1–64 characters), e.g. "lv", "liver", "kidney".
     #[schema(example = "lv")]
     pub organ: String,
+    /// Simplify every uploaded mesh to about this many vertices unless the upload says
+    /// otherwise (at least 8; none: keep meshes as uploaded).
+    #[schema(example = 2000)]
+    pub target_vertices: Option<i64>,
 }
 
 /// Checks a free-text field: not blank, not too long, no control characters.
@@ -47,6 +51,18 @@ pub(crate) fn check_label(field: &str, value: &str, max_chars: usize) -> Result<
         return Err(ApiError::invalid_field(
             field,
             format!("{field} must not contain control characters"),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks a simplification target: at least the smallest surface, at most the vertex limit.
+pub(crate) fn check_target_vertices(target: i64, max_vertices: usize) -> Result<(), ApiError> {
+    let min = crate::mesh::simplify::MIN_TARGET_VERTICES as i64;
+    if target < min || target > max_vertices as i64 {
+        return Err(ApiError::invalid_field(
+            "target_vertices",
+            format!("target_vertices must be between {min} and {max_vertices}, got {target}"),
         ));
     }
     Ok(())
@@ -74,9 +90,12 @@ async fn create_dataset(
 ) -> Result<(StatusCode, HeaderMap, Json<Dataset>), ApiError> {
     check_label("name", &body.name, MAX_NAME_CHARS)?;
     check_label("organ", &body.organ, MAX_ORGAN_CHARS)?;
+    if let Some(target) = body.target_vertices {
+        check_target_vertices(target, state.max_vertices)?;
+    }
     let dataset = state
         .store
-        .create_dataset(body.name.trim(), body.organ.trim())
+        .create_dataset(body.name.trim(), body.organ.trim(), body.target_vertices)
         .await?;
     let mut headers = HeaderMap::new();
     if let Ok(location) = HeaderValue::from_str(&format!("/v1/datasets/{}", dataset.id)) {

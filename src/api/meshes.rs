@@ -1,7 +1,7 @@
 //! Mesh upload (raw body or multipart), listing, metadata, download and deletion.
 
 use axum::body::Bytes;
-use axum::extract::{FromRequest, Multipart, Request, State};
+use axum::extract::{FromRequest, Request, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::{Deserialize, Serialize};
@@ -12,8 +12,13 @@ use utoipa_axum::routes;
 use super::AppState;
 use super::error::{ApiError, Problem};
 use super::extract::{Json, PageQuery, Paginated, Path, Query};
+use super::upload::{
+    Conversion, InputKind, UploadedFile, convert_all, parse_input_kind, read_multipart,
+    unsupported_content_type,
+};
 use crate::mesh::{self, Format};
-use crate::store::meshes::{MeshRecord, NewMesh, format_name};
+use crate::segmentation;
+use crate::store::meshes::MeshRecord;
 
 /// Longest mesh name, in characters.
 const MAX_NAME_CHARS: usize = 200;
@@ -30,10 +35,47 @@ pub(super) fn router() -> OpenApiRouter<AppState> {
 #[into_params(parameter_in = Query)]
 #[serde(deny_unknown_fields)]
 pub struct UploadQuery {
-    /// File format when the Content-Type does not say it: `obj`, `stl`, `ply` or `vtk`.
+    /// File format when the Content-Type does not say it: `obj`, `stl`, `ply`, `vtk`, or
+    /// `nifti` for a NIfTI-1 label volume (`.nii` or gzip `.nii.gz`).
     pub format: Option<String>,
     /// Name of the mesh (raw uploads; multipart parts use their file names).
     pub name: Option<String>,
+    /// NIfTI: the label (default 1) or a comma-separated list of labels forming the structure.
+    pub label: Option<String>,
+    /// NIfTI: `largest` (default) keeps the largest 6-connected part, `all` keeps every part.
+    pub component: Option<String>,
+    /// NIfTI: fill cavities not connected to the outside (default true).
+    pub fill_holes: Option<bool>,
+    /// NIfTI: Gaussian smoothing in mm before the surface is extracted (default 1.0; 0: none).
+    pub smooth_sigma_mm: Option<f64>,
+    /// NIfTI: size of the isotropic voxels the surface is extracted from, mm (default 1.5).
+    pub voxel_mm: Option<f64>,
+    /// Simplify every mesh to about this many vertices by quadric edge collapse, keeping it
+    /// closed (default: the dataset's `target_vertices`, else no simplification).
+    pub target_vertices: Option<i64>,
+}
+
+impl UploadQuery {
+    /// Label volume parameters, defaults filled in and checked.
+    fn segmentation(&self) -> Result<segmentation::Options, ApiError> {
+        let invalid = |e: segmentation::OptionsError| ApiError::invalid_field(e.field, e.message);
+        let defaults = segmentation::Options::default();
+        let options = segmentation::Options {
+            labels: match &self.label {
+                Some(text) => segmentation::Options::parse_labels(text).map_err(invalid)?,
+                None => defaults.labels,
+            },
+            component: match &self.component {
+                Some(text) => text.parse().map_err(invalid)?,
+                None => defaults.component,
+            },
+            fill_holes: self.fill_holes.unwrap_or(defaults.fill_holes),
+            smooth_sigma_mm: self.smooth_sigma_mm.unwrap_or(defaults.smooth_sigma_mm),
+            voxel_mm: self.voxel_mm.unwrap_or(defaults.voxel_mm),
+        };
+        options.check().map_err(invalid)?;
+        Ok(options)
+    }
 }
 
 /// Response of a multipart upload.
@@ -76,13 +118,6 @@ pub struct DownloadQuery {
     pub format: Option<String>,
 }
 
-/// A file of the request before parsing.
-struct UploadedFile {
-    name: String,
-    format: Format,
-    bytes: Bytes,
-}
-
 pub(crate) fn parse_format(field: &str, name: &str) -> Result<Format, ApiError> {
     Format::from_name(name).ok_or_else(|| {
         ApiError::new(
@@ -100,20 +135,7 @@ fn content_type(headers: &HeaderMap) -> Option<&str> {
         .and_then(|v| v.to_str().ok())
 }
 
-fn unsupported_content_type(found: Option<&str>) -> ApiError {
-    ApiError::new(
-        StatusCode::UNSUPPORTED_MEDIA_TYPE,
-        "mesh.unsupported_format",
-        format!(
-            "cannot tell the mesh format from Content-Type {}; send model/obj, model/stl, \
-             application/x-ply or application/vnd.vtk, add ?format=obj|stl|ply|vtk, or upload \
-             multipart/form-data",
-            found.map_or("(none)".to_owned(), |c| format!("'{c}'"))
-        ),
-    )
-}
-
-fn check_name(name: &str) -> Result<(), ApiError> {
+pub(super) fn check_name(name: &str) -> Result<(), ApiError> {
     super::datasets::check_label("name", name, MAX_NAME_CHARS)
 }
 
@@ -123,10 +145,13 @@ fn check_name(name: &str) -> Result<(), ApiError> {
     params(("id" = String, Path, description = "Dataset id"), UploadQuery),
     request_body(
         description = "A mesh file (OBJ, STL ASCII/binary, PLY ASCII/binary little-endian, \
-                       legacy ASCII VTK polydata), or multipart/form-data with one `file` part per mesh",
+                       legacy ASCII VTK polydata), a NIfTI-1 label volume (.nii or .nii.gz; \
+                       application/x-nifti, or any type with ?format=nifti) that becomes a \
+                       closed surface, or multipart/form-data with one `file` part per file",
         content(
             (MeshFile = "model/obj"), (MeshFile = "model/stl"),
             (MeshFile = "application/x-ply"), (MeshFile = "application/vnd.vtk"),
+            (MeshFile = "application/x-nifti"), (MeshFile = "application/gzip"),
             (MeshFiles = "multipart/form-data"),
         )
     ),
@@ -134,9 +159,9 @@ fn check_name(name: &str) -> Result<(), ApiError> {
         (status = 201, description = "Stored: the mesh record (raw upload) or {meshes: [...]} (multipart)", body = UploadResponse),
         (status = 404, description = "No such dataset", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "The dataset already holds this geometry", body = Problem, content_type = "application/problem+json"),
-        (status = 413, description = "Body or mesh too large", body = Problem, content_type = "application/problem+json"),
-        (status = 415, description = "Unknown format", body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "The file is not a usable mesh", body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "Body, mesh or volume too large (`mesh.too_large`, `nifti.too_large`)", body = Problem, content_type = "application/problem+json"),
+        (status = 415, description = "Unknown format (`mesh.unsupported_format`, `nifti.unsupported_format`)", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "The file is not a usable mesh or label volume (`mesh.*`, `nifti.parse_error`, `nifti.unsupported_datatype`, `nifti.empty_label`, ...)", body = Problem, content_type = "application/problem+json"),
     )
 )]
 async fn upload_meshes(
@@ -145,21 +170,22 @@ async fn upload_meshes(
     Query(query): Query<UploadQuery>,
     request: Request,
 ) -> Result<Response, ApiError> {
-    state.store.dataset(&dataset_id).await?;
+    let dataset = state.store.dataset(&dataset_id).await?;
+    let conversion = conversion(&state, &query, dataset.target_vertices)?;
     let ct = content_type(request.headers()).map(str::to_owned);
     let multipart = ct
         .as_deref()
         .is_some_and(|c| c.to_ascii_lowercase().starts_with("multipart/form-data"));
     if multipart {
         let files = read_multipart(&state, &query, request).await?;
-        let records = store_files(&state, &dataset_id, files).await?;
+        let records = store_files(&state, &dataset_id, conversion, files).await?;
         let body = UploadResponse::Many(UploadedMeshes { meshes: records });
         return Ok((StatusCode::CREATED, Json(body)).into_response());
     }
-    let format = match (&query.format, ct.as_deref()) {
-        (Some(f), _) => parse_format("format", f)?,
+    let kind = match (&query.format, ct.as_deref()) {
+        (Some(f), _) => parse_input_kind(f)?,
         (None, Some(c)) => {
-            Format::from_content_type(c).ok_or_else(|| unsupported_content_type(Some(c)))?
+            InputKind::from_content_type(c).ok_or_else(|| unsupported_content_type(Some(c)))?
         }
         (None, None) => return Err(unsupported_content_type(None)),
     };
@@ -168,12 +194,8 @@ async fn upload_meshes(
     if !name.is_empty() {
         check_name(&name)?;
     }
-    let file = UploadedFile {
-        name,
-        format,
-        bytes,
-    };
-    let mut records = store_files(&state, &dataset_id, vec![file]).await?;
+    let file = UploadedFile { name, kind, bytes };
+    let mut records = store_files(&state, &dataset_id, conversion, vec![file]).await?;
     let record = records
         .pop()
         .ok_or_else(|| ApiError::internal("the upload stored no mesh"))?;
@@ -189,113 +211,33 @@ async fn upload_meshes(
         .into_response())
 }
 
-async fn read_multipart(
+/// The parameters of an upload, checked before the body is read.
+fn conversion(
     state: &AppState,
     query: &UploadQuery,
-    request: Request,
-) -> Result<Vec<UploadedFile>, ApiError> {
-    let default_format = query
-        .format
-        .as_deref()
-        .map(|f| parse_format("format", f))
-        .transpose()?;
-    let mut multipart = Multipart::from_request(request, state).await.map_err(|r| {
-        ApiError::new(
-            StatusCode::BAD_REQUEST,
-            "request.unreadable_body",
-            r.body_text(),
-        )
-    })?;
-    let mut files = Vec::new();
-    while let Some(field) = multipart.next_field().await? {
-        let part = files.len();
-        let field_name = field.name().unwrap_or_default().to_owned();
-        if !matches!(field_name.as_str(), "file" | "files" | "file[]" | "files[]") {
-            return Err(ApiError::new(
-                StatusCode::UNPROCESSABLE_ENTITY,
-                "request.unexpected_part",
-                format!(
-                    "multipart part '{field_name}' is not expected; send each mesh as a part named 'file'"
-                ),
-            ));
-        }
-        let file_name = field.file_name().unwrap_or_default().to_owned();
-        let format = Format::from_file_name(&file_name)
-            .or_else(|| field.content_type().and_then(Format::from_content_type))
-            .or(default_format)
-            .ok_or_else(|| {
-                unsupported_content_type(field.content_type())
-                    .with("part", part)
-                    .with("filename", file_name.clone())
-            })?;
-        let name = file_stem(&file_name);
-        if !name.is_empty() {
-            check_name(&name)?;
-        }
-        let bytes = field.bytes().await?;
-        files.push(UploadedFile {
-            name,
-            format,
-            bytes,
-        });
+    dataset_target: Option<i64>,
+) -> Result<Conversion, ApiError> {
+    let target = query.target_vertices.or(dataset_target);
+    if let Some(t) = target {
+        super::datasets::check_target_vertices(t, state.max_vertices)?;
     }
-    if files.is_empty() {
-        return Err(ApiError::new(
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "request.no_files",
-            "the multipart body holds no 'file' part; attach at least one mesh file",
-        ));
-    }
-    Ok(files)
+    Ok(Conversion {
+        ingest: state.ingest_options(),
+        segmentation: query.segmentation()?,
+        limits: segmentation::Limits::default(),
+        target_vertices: target.map(|t| t as usize),
+    })
 }
 
-fn file_stem(file_name: &str) -> String {
-    let base = file_name.rsplit(['/', '\\']).next().unwrap_or_default();
-    match base.rsplit_once('.') {
-        Some((stem, _)) if !stem.is_empty() => stem.to_owned(),
-        _ => base.to_owned(),
-    }
-}
-
-/// Parses and validates every file off the async runtime, then stores them in one transaction.
+/// Converts every file off the async runtime, then stores them in one transaction.
 async fn store_files(
     state: &AppState,
     dataset_id: &str,
+    conversion: Conversion,
     files: Vec<UploadedFile>,
 ) -> Result<Vec<MeshRecord>, ApiError> {
-    let options = state.ingest_options();
-    let count = files.len();
-    let parsed = tokio::task::spawn_blocking(move || {
-        files
-            .into_iter()
-            .enumerate()
-            .map(|(part, file)| {
-                let ingested =
-                    mesh::validate::ingest(&file.bytes, file.format, &options).map_err(|e| {
-                        let err = ApiError::from(e);
-                        if count > 1 {
-                            err.with("part", part).with("filename", file.name.clone())
-                        } else {
-                            err
-                        }
-                    })?;
-                let name = if file.name.is_empty() {
-                    format!("mesh_{}", &mesh::codec::sha256_hex(&ingested.mesh)[..12])
-                } else {
-                    file.name
-                };
-                Ok(NewMesh {
-                    name,
-                    source_format: format_name(file.format),
-                    ingested,
-                    source: None,
-                })
-            })
-            .collect::<Result<Vec<_>, ApiError>>()
-    })
-    .await
-    .map_err(|e| ApiError::internal(e.to_string()))??;
-    Ok(state.store.insert_meshes(dataset_id, parsed).await?)
+    let meshes = convert_all(conversion, files).await?;
+    Ok(state.store.insert_meshes(dataset_id, meshes).await?)
 }
 
 /// List a dataset's meshes in upload order.

@@ -12,6 +12,7 @@ mod jobs;
 mod meshes;
 mod models;
 mod ops;
+pub mod upload;
 
 use std::sync::Arc;
 

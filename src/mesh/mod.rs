@@ -13,6 +13,7 @@ mod manifold;
 pub mod measures;
 mod orient;
 pub mod phantom;
+pub mod simplify;
 pub mod topology;
 pub mod validate;
 

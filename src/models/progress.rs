@@ -46,6 +46,7 @@ impl Progress for Silent {
 pub struct Stages {
     plan: Vec<(&'static str, f64)>,
     current: usize,
+    running: bool,
     started: Instant,
     /// Seconds spent in each finished stage.
     pub seconds: Vec<(&'static str, f64)>,
@@ -58,6 +59,7 @@ impl Stages {
         Self {
             plan: plan.iter().map(|(s, w)| (*s, w / total)).collect(),
             current: 0,
+            running: false,
             started: Instant::now(),
             seconds: Vec::new(),
         }
@@ -76,12 +78,12 @@ impl Stages {
 
     /// Closes the timing of the running stage (call once at the end).
     pub fn close(&mut self) {
-        if let Some((stage, _)) = self.plan.get(self.current)
-            && !self.seconds.iter().any(|(s, _)| s == stage)
+        if self.running
+            && let Some((stage, _)) = self.plan.get(self.current)
         {
-            self.seconds
-                .push((stage, self.started.elapsed().as_secs_f64()));
+            self.seconds.push((stage, self.started.elapsed().as_secs_f64()));
         }
+        self.running = false;
     }
 
     /// Reports `step` of `total` in the current stage.
@@ -145,5 +147,7 @@ mod tests {
         assert!((record.0[1].fraction - 1.0).abs() < 1e-12);
         assert_eq!(record.0[1].stage, "b");
         assert_eq!(stages.seconds.len(), 2);
+        assert_eq!(stages.seconds[1].0, "b");
+        assert!(stages.seconds[1].1 >= 0.02 && stages.seconds[0].1 < 0.02);
     }
 }

@@ -16,33 +16,45 @@ pub struct Dataset {
     pub name: String,
     /// Organ the meshes show, e.g. "lv", "liver", "kidney".
     pub organ: String,
+    /// Default simplification of uploads: about this many vertices per mesh (none: keep).
+    pub target_vertices: Option<i64>,
     /// Number of meshes in the dataset.
     pub mesh_count: i64,
     /// Creation time (RFC 3339, UTC).
     pub created_at: String,
 }
 
-const SELECT_DATASET: &str = "SELECT d.id, d.name, d.organ, d.created_at, \
+const SELECT_DATASET: &str = "SELECT d.id, d.name, d.organ, d.target_vertices, d.created_at, \
      (SELECT COUNT(*) FROM meshes m WHERE m.dataset_id = d.id) AS mesh_count \
      FROM datasets d";
 
 impl Store {
-    /// Creates an empty dataset.
-    pub async fn create_dataset(&self, name: &str, organ: &str) -> Result<Dataset, StoreError> {
+    /// Creates an empty dataset, optionally with a default simplification target.
+    pub async fn create_dataset(
+        &self,
+        name: &str,
+        organ: &str,
+        target_vertices: Option<i64>,
+    ) -> Result<Dataset, StoreError> {
         let dataset = Dataset {
             id: new_id(),
             name: name.to_owned(),
             organ: organ.to_owned(),
+            target_vertices,
             mesh_count: 0,
             created_at: now(),
         };
-        sqlx::query("INSERT INTO datasets (id, name, organ, created_at) VALUES (?, ?, ?, ?)")
-            .bind(&dataset.id)
-            .bind(&dataset.name)
-            .bind(&dataset.organ)
-            .bind(&dataset.created_at)
-            .execute(&self.write)
-            .await?;
+        sqlx::query(
+            "INSERT INTO datasets (id, name, organ, target_vertices, created_at) \
+             VALUES (?, ?, ?, ?, ?)",
+        )
+        .bind(&dataset.id)
+        .bind(&dataset.name)
+        .bind(&dataset.organ)
+        .bind(dataset.target_vertices)
+        .bind(&dataset.created_at)
+        .execute(&self.write)
+        .await?;
         Ok(dataset)
     }
 

@@ -6,7 +6,7 @@ use std::path::Path;
 use crate::support::crate_dir;
 
 /// Modules that must stay free of I/O frameworks.
-const PURE: [&str; 5] = ["mesh", "geometry", "nn", "eval", "models"];
+const PURE: [&str; 6] = ["mesh", "geometry", "segmentation", "nn", "eval", "models"];
 /// Crates a pure module must not use.
 const FORBIDDEN_CRATES: [&str; 5] = ["axum", "sqlx", "tokio", "tower", "reqwest"];
 /// Layers from top to bottom; a module may use only modules after it.
@@ -15,7 +15,7 @@ const LAYERS: [&[&str]; 6] = [
     &["jobs"],
     &["store", "models"],
     &["nn", "eval"],
-    &["geometry"],
+    &["geometry", "segmentation"],
     &["mesh"],
 ];
 

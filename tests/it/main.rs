@@ -5,6 +5,8 @@ mod auth;
 mod bad_uploads;
 mod datasets;
 mod jobs;
+mod kits19;
 mod meshes;
+mod nifti;
 mod openapi;
 mod support;
