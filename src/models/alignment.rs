@@ -164,7 +164,11 @@ mod tests {
             .iter()
             .map(|p| {
                 let r = mat_vec(&rotation, *p);
-                [scale * r[0] + 40.0, scale * r[1] - 25.0, scale * r[2] + 10.0]
+                [
+                    scale * r[0] + 40.0,
+                    scale * r[1] - 25.0,
+                    scale * r[2] + 10.0,
+                ]
             })
             .collect()
     }
@@ -185,7 +189,11 @@ mod tests {
         let mut params = AlignmentParams::default();
         params.cpd.scale = true;
         let result = register(&liver.vertices, &target, &params).unwrap();
-        assert!((result.transform.scale - 1.15).abs() < 1e-3, "scale {}", result.transform.scale);
+        assert!(
+            (result.transform.scale - 1.15).abs() < 1e-3,
+            "scale {}",
+            result.transform.scale
+        );
         let worst = worst_residual(&result, &liver.vertices, &target);
         assert!(worst < 1e-3 * 100.0, "largest residual {worst} mm");
     }

@@ -81,7 +81,8 @@ impl Stages {
         if self.running
             && let Some((stage, _)) = self.plan.get(self.current)
         {
-            self.seconds.push((stage, self.started.elapsed().as_secs_f64()));
+            self.seconds
+                .push((stage, self.started.elapsed().as_secs_f64()));
         }
         self.running = false;
     }
