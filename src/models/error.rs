@@ -28,8 +28,9 @@ pub enum ModelError {
     },
     /// Acceptance sampling could not find enough accepted members.
     #[error(
-        "only {accepted} of {draws} draws passed the {criterion} criterion, short of the \
-         {size} asked for; lower size, use a wider criterion (range) or turn off only_accepted"
+        "only {accepted} of {draws} draws passed the {criterion} criterion and the privacy \
+         guard, short of the {size} asked for; lower size, use a wider criterion (range), or \
+         turn off only_accepted or exclude_near_copies"
     )]
     AcceptanceUnreachable {
         /// Members asked for.

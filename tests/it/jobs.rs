@@ -144,6 +144,35 @@ async fn phantoms_to_model_to_reproducible_cohort() {
     }
     assert!(cohort["report"]["biomarkers"]["sphericity"].is_object());
     assert!(cohort["members"][0]["accepted"]["mean"].is_boolean());
+    assert!(
+        cohort["report"]["privacy"]["threshold_mm"]
+            .as_f64()
+            .unwrap()
+            > 0.0
+    );
+    for m in cohort["members"].as_array().unwrap() {
+        assert!(m["nearest_training_mm"].as_f64().unwrap() > 0.0);
+        assert!(m["near_copy"].is_boolean());
+        let nearest = m["nearest_training_mesh_id"].as_str().unwrap();
+        assert!(
+            model["provenance"]["training_mesh_ids"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|id| id == nearest)
+        );
+    }
+    let filtered = json!({"size": 20, "seed": 7, "only_accepted": true, "exclude_near_copies": true, "acceptance": {"criterion": "range"}});
+    let strict = expect_json(
+        s.client.post(&url).json(&filtered).send().await.unwrap(),
+        StatusCode::CREATED,
+    )
+    .await;
+    for m in strict["members"].as_array().unwrap() {
+        assert_eq!(m["accepted"]["range"], true);
+        assert_eq!(m["near_copy"], false);
+    }
+    assert_eq!(strict["report"]["acceptance"]["range"], 1.0);
 
     let member = |cohort: &Value| {
         s.url(&format!(
