@@ -229,3 +229,57 @@ fn progress_can_stop_the_loop_and_inputs_are_checked() {
     let err = learn_atlas(mesh, &input, &no_steps, |_| unreachable!(), |_| Ok(()));
     assert!(matches!(err, Err(ModelError::InvalidParams { .. })));
 }
+
+/// The loop on three perturbed LV phantoms with the defaults and with the thesis's settings
+/// as written (run with `--ignored --nocapture`).
+#[test]
+#[ignore = "report, not a check"]
+fn report_loop_settings() {
+    use crate::models::asmg::atlas::AtlasUpdateParams;
+    use crate::models::asmg::smoothing::{Smoothing, SmoothingMethod, SmoothingParams};
+    let (mesh, shapes) = perturbed_phantoms();
+    let embedder = FourierEmbedder::new(128, 3.0, 12);
+    let thesis = AtlasLoopParams {
+        temperature: Temperature::InverseVariance { multiplier: 1.0 },
+        smoothing: SmoothingParams {
+            gamma: 50.0,
+            target: Smoothing::Positions,
+            method: SmoothingMethod::Exact,
+        },
+        atlas_update: AtlasUpdateParams {
+            gamma_mu: None,
+            damping: 1.0,
+            target: Smoothing::Positions,
+        },
+        tolerance_mm: 1e-3,
+        max_steps: 10,
+    };
+    let runs = [
+        (
+            "defaults, lambda fixed 200",
+            loop_params(30, DEFAULT_TOLERANCE_MM),
+        ),
+        ("defaults", AtlasLoopParams::default()),
+        ("thesis as written", thesis),
+    ];
+    let v0 = volume_ml(&mesh);
+    for (name, params) in runs {
+        let learned = run(&params, &embedder, &mesh, &shapes).unwrap();
+        let moves: Vec<String> = learned
+            .steps
+            .iter()
+            .map(|s| format!("{:.3}", s.movement_mm))
+            .collect();
+        let h_volume = volume_ml(&Mesh::new(learned.smoothed[1].clone(), mesh.faces.clone()));
+        println!(
+            "{name}: {} steps, converged {}, movement/step mm [{}], match weight {:.2}, \
+             atlas volume {:.1}% and h'_1 volume {:.1}% of the phantom's",
+            learned.steps.len(),
+            learned.converged,
+            moves.join(", "),
+            learned.steps[learned.steps.len() - 1].mean_match_weight,
+            100.0 * volume_ml(&learned.atlas) / v0,
+            100.0 * h_volume / v0,
+        );
+    }
+}
