@@ -7,8 +7,9 @@
 //!
 //! `Φ_k` is never stored: the scores of a block of 16 atlas rows (`[16, N_k]`) are
 //! exponentiated and folded into `h_kj` on the spot, and the blocks are shared over the
-//! cores. An inverse-variance temperature needs the variance of all scores
-//! first, which costs one more streaming pass over `S_k`.
+//! cores. An inverse-variance temperature needs the variance of all scores first, which
+//! costs one more streaming pass over `S_k`. Per shape, as asked here; the thesis pools the
+//! variance over all shapes, which [`score_moments`] and [`Temperature::Fixed`] allow.
 
 use std::ops::Range;
 

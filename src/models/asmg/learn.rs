@@ -3,9 +3,9 @@
 //! Starting from an initial atlas `X_μ` (fixed connectivity), every step embeds the atlas
 //! (`Z_μ = Ψ(X_μ)`, a closure: the network lives elsewhere), normalises every shape through
 //! the attention (`h_k = Φ_k X_k`), smooths it (`h'_k`), and moves the atlas towards the
-//! closed-form update from `Σ_k h'_k` (see [`super::atlas`]), damped. The loop stops once the atlas moves
-//! less than a tolerance (mean vertex displacement, mm) or after a step cap (SPEC §2.9: the
-//! undamped loop oscillates by several mm).
+//! closed-form update from `Σ_k h'_k` (see [`super::atlas`]), damped. The loop stops once
+//! the atlas moves less than a tolerance (mean vertex displacement, mm) or after a step cap
+//! (SPEC §2.9: the undamped loop oscillates by several mm).
 
 use super::atlas::{AtlasUpdateParams, AtlasUpdater};
 use super::attention::{Temperature, correspond};

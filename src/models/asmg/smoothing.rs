@@ -14,8 +14,12 @@ use crate::mesh::Mesh;
 use crate::mesh::adjacency::Adjacency;
 use crate::models::ModelError;
 
-/// Default smoothing weight γ for [`Smoothing::Displacement`] with the exact solve (see the
-/// volume tests: a phantom's volume changes by far less than 2%).
+/// Default smoothing weight γ, for [`Smoothing::Displacement`] with the exact solve.
+///
+/// Measured on an LV phantom (1,707 vertices, 0.5 mm noise per coordinate; see
+/// `report_smoothing_settings`): γ = 1 keeps 23% of the noise (RMS) and changes the volume
+/// by −0.3%, and a stretch of the atlas by (1.1, 0.95, 1.05) keeps its volume to 0.4%;
+/// γ = 5 keeps 9% of the noise but loses 1.2% of the stretch's volume, γ = 50 loses 5.3%.
 pub const DEFAULT_GAMMA: f64 = 1.0;
 
 /// The thesis's smoothing weight γ (eq. 4.5); shrinks shapes when applied to positions.
