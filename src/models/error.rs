@@ -54,6 +54,12 @@ pub enum ModelError {
     /// A stored model could not be decoded.
     #[error("stored model is corrupt: {0}")]
     Corrupt(String),
+    /// Inputs of a numerical step do not fit together (sizes, non-finite values).
+    #[error("invalid model input: {0}")]
+    InvalidInput(String),
+    /// A numerical step failed (e.g. a factorisation).
+    #[error("numerical failure: {0}")]
+    Numerical(String),
 }
 
 impl ModelError {
@@ -67,6 +73,8 @@ impl ModelError {
             Self::Eval(e) => e.code(),
             Self::Cancelled(_) => "job.cancelled",
             Self::Corrupt(_) => "model.corrupt",
+            Self::InvalidInput(_) => "model.invalid_input",
+            Self::Numerical(_) => "model.numerical",
         }
     }
 

@@ -4,6 +4,7 @@
 //! Model types: `rsmp` (rigid CPD + soft correspondences + PCA, thesis ch. 3).
 
 pub mod alignment;
+pub mod asmg;
 pub mod cohort;
 mod error;
 pub mod evaluation;
