@@ -8,6 +8,7 @@ pub mod kde;
 pub mod metrics;
 pub mod privacy;
 pub mod stats;
+pub mod surface_metrics;
 
 pub use biomarkers::Biomarkers;
 pub use error::EvalError;

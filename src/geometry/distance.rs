@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::GeometryError;
+use super::bvh::TriangleBvh;
 use super::kdtree::PointCloudIndex;
 
 /// Distances between a shape `g` and a shape `g'`, in mm.
@@ -78,9 +79,68 @@ pub fn surface_distances(
     Ok(surface_distances_indexed(a, &a_index, b, &b_index))
 }
 
+/// Distances from every point of `points` to the closest point of a triangle surface.
+pub fn directed_to_surface(points: &[[f64; 3]], surface: &TriangleBvh) -> DirectedDistance {
+    let (mut max, mut sum) = (0.0f64, 0.0);
+    for p in points {
+        let d = surface.closest(*p).distance;
+        max = max.max(d);
+        sum += d;
+    }
+    DirectedDistance {
+        max,
+        mean: if points.is_empty() {
+            0.0
+        } else {
+            sum / points.len() as f64
+        },
+    }
+}
+
+/// Point-to-surface distances between meshes `a` (`g`) and `b` (`g'`), mm: `ED` averages
+/// the distance from `a`'s vertices to `b`'s triangles, `ED*` the reverse, `HD` is the
+/// larger maximum. Unlike vertex-to-vertex distances they do not grow with coarse sampling.
+pub fn point_to_surface_distances(
+    a: &[[f64; 3]],
+    a_surface: &TriangleBvh,
+    b: &[[f64; 3]],
+    b_surface: &TriangleBvh,
+) -> SurfaceDistances {
+    let ab = directed_to_surface(a, b_surface);
+    let ba = directed_to_surface(b, a_surface);
+    SurfaceDistances {
+        hd: ab.max.max(ba.max),
+        ed: ab.mean,
+        ed_star: ba.mean,
+        cd: ab.mean + ba.mean,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn point_to_surface_between_nested_cubes() {
+        // The 10 mm cube and the same cube grown by 2 mm about its centre: every vertex of
+        // the big cube is 2·√3 mm from the small one's corner, every small-cube vertex 2 mm
+        // from the big cube's faces.
+        let small = crate::mesh::fixtures::cube();
+        let big: Vec<[f64; 3]> = small
+            .vertices
+            .iter()
+            .map(|p| p.map(|c| (c - 5.0) * 1.4 + 5.0))
+            .collect();
+        let small_bvh = TriangleBvh::new(&small.vertices, &small.faces).unwrap();
+        let big_bvh = TriangleBvh::new(&big, &small.faces).unwrap();
+        let d = point_to_surface_distances(&small.vertices, &small_bvh, &big, &big_bvh);
+        assert!((d.ed - 2.0).abs() < 1e-12, "{d:?}");
+        assert!((d.ed_star - 12f64.sqrt()).abs() < 1e-12, "{d:?}");
+        assert!((d.hd - 12f64.sqrt()).abs() < 1e-12);
+        // Vertex-to-vertex distances agree here (corners face corners).
+        let v = surface_distances(&small.vertices, &big).unwrap();
+        assert!((v.ed - 12f64.sqrt()).abs() < 1e-12);
+    }
 
     #[test]
     fn hand_computed_example() {

@@ -1,6 +1,7 @@
 //! Shape geometry on point sets and meshes: rigid registration (CPD), nearest-neighbour
 //! queries, PCA. Pure: no async, SQL or HTTP.
 
+pub mod bvh;
 pub mod correspondence;
 pub mod cpd;
 pub mod distance;
@@ -10,6 +11,7 @@ pub mod pca;
 pub mod points;
 pub mod procrustes;
 pub mod transform;
+pub mod triangle;
 
 pub use correspondence::normalised_shape;
 pub use cpd::{CpdResult, RigidCpdParams, rigid_cpd, rigid_cpd_from, rigid_cpd_multistart};

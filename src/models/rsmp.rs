@@ -243,9 +243,11 @@ pub fn fit(
         None,
     )?;
     stages.enter("evaluation");
+    let training_faces: Vec<&[[u32; 3]]> = training.iter().map(|m| m.faces.as_slice()).collect();
     let evaluation = evaluate(
         &model,
         &aligned,
+        &training_faces,
         holdout,
         training.len(),
         seed,

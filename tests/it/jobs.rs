@@ -165,8 +165,17 @@ async fn phantoms_to_model_to_reproducible_cohort() {
                 .as_f64()
                 .unwrap_or(-1.0);
             assert!(mean > 0.0 && mean < 30.0, "{metric}.{d} = {mean}");
+            // Point-to-surface distances never exceed vertex-to-vertex ones.
+            let surface = model["evaluation"]["point_to_surface"][metric][d]["mean"]
+                .as_f64()
+                .unwrap_or(-1.0);
+            assert!(
+                surface > 0.0 && surface <= mean + 1e-9,
+                "point-to-surface {metric}.{d} = {surface} against {mean}"
+            );
         }
     }
+    assert_eq!(model["evaluation"]["distance"], "vertex-to-vertex");
     let explained = model["explained_variance"].as_array().unwrap();
     assert!((explained.last().unwrap().as_f64().unwrap() - 1.0).abs() < 1e-9);
 

@@ -1,0 +1,102 @@
+//! Point-to-surface versions of the quality metrics: distances from vertices to the closest
+//! point on the other shape's triangles (through a BVH), which many users of the field quote
+//! because they do not depend on how finely the shapes are sampled.
+
+use super::EvalError;
+use super::metrics::{DistanceSummary, PairedDistances, parallel_map};
+use crate::geometry::bvh::TriangleBvh;
+use crate::geometry::distance::{SurfaceDistances, point_to_surface_distances};
+
+/// A triangle surface: vertices `[n_vertices, 3]` in mm and faces `[n_faces, 3]`.
+#[derive(Debug, Clone, Copy)]
+pub struct Surface<'a> {
+    /// Vertices, mm.
+    pub vertices: &'a [[f64; 3]],
+    /// Triangles as vertex indices.
+    pub faces: &'a [[u32; 3]],
+}
+
+/// Point-to-surface distances of pairs `(a[i], b[i])` (`g`, `g'`); the lists must be equally
+/// long and non-empty.
+pub fn paired_point_to_surface(
+    a: &[Surface<'_>],
+    b: &[Surface<'_>],
+) -> Result<PairedDistances, EvalError> {
+    if a.len() != b.len() {
+        return Err(EvalError::DimensionMismatch {
+            what: "paired surfaces",
+            expected: a.len(),
+            found: b.len(),
+        });
+    }
+    let pairs: Vec<(&Surface<'_>, &Surface<'_>)> = a.iter().zip(b).collect();
+    let per_pair = parallel_map(&pairs, |(g, h)| -> Result<SurfaceDistances, EvalError> {
+        let g_bvh = TriangleBvh::new(g.vertices, g.faces)?;
+        let h_bvh = TriangleBvh::new(h.vertices, h.faces)?;
+        Ok(point_to_surface_distances(
+            g.vertices, &g_bvh, h.vertices, &h_bvh,
+        ))
+    })
+    .into_iter()
+    .collect::<Result<Vec<_>, _>>()?;
+    let summary = DistanceSummary::from_pairs(&per_pair)?;
+    Ok(PairedDistances { per_pair, summary })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_surface_against_a_finer_sampling_of_itself_is_at_zero() {
+        // A square as two triangles against the same square as eight: vertex-to-vertex
+        // distances see the extra vertices, point-to-surface ones do not.
+        let coarse_v = [
+            [0.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [2.0, 2.0, 0.0],
+            [0.0, 2.0, 0.0],
+        ];
+        let coarse_f = [[0, 1, 2], [0, 2, 3]];
+        let mut fine_v = Vec::new();
+        for j in 0..3 {
+            for i in 0..3 {
+                fine_v.push([i as f64, j as f64, 0.0]);
+            }
+        }
+        let mut fine_f = Vec::new();
+        for j in 0..2u32 {
+            for i in 0..2u32 {
+                let v = j * 3 + i;
+                fine_f.push([v, v + 1, v + 4]);
+                fine_f.push([v, v + 4, v + 3]);
+            }
+        }
+        let coarse = Surface {
+            vertices: &coarse_v,
+            faces: &coarse_f,
+        };
+        let fine = Surface {
+            vertices: &fine_v,
+            faces: &fine_f,
+        };
+        let d = paired_point_to_surface(&[coarse], &[fine]).unwrap();
+        assert!(
+            d.per_pair[0].hd < 1e-12 && d.summary.cd.mean < 1e-12,
+            "{d:?}"
+        );
+        let v = crate::geometry::distance::surface_distances(&coarse_v, &fine_v).unwrap();
+        assert!(v.ed_star > 0.5, "{v:?}");
+    }
+
+    #[test]
+    fn mismatched_lists_are_refused() {
+        let v = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let f = [[0, 1, 2]];
+        let s = Surface {
+            vertices: &v,
+            faces: &f,
+        };
+        assert!(paired_point_to_surface(&[s, s], &[s]).is_err());
+    }
+}
