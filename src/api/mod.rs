@@ -13,6 +13,7 @@ mod jobs;
 mod meshes;
 mod models;
 mod ops;
+mod reports;
 pub mod upload;
 
 use std::sync::Arc;
@@ -122,7 +123,8 @@ fn api_routes() -> (OpenApiRouter<AppState>, OpenApiRouter<AppState>) {
         .merge(meshes::router())
         .merge(jobs::router())
         .merge(models::router())
-        .merge(cohorts::router());
+        .merge(cohorts::router())
+        .merge(reports::router());
     (v1, ops::router())
 }
 

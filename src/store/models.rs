@@ -164,6 +164,16 @@ impl Store {
         Ok((row.try_get("payload")?, json(&row, "reference")?))
     }
 
+    /// A model's reference population (JSON), without its payload.
+    pub async fn model_reference(&self, id: &str) -> Result<serde_json::Value, StoreError> {
+        let row = sqlx::query("SELECT reference FROM models WHERE id = ?")
+            .bind(id)
+            .fetch_optional(&self.read)
+            .await?
+            .ok_or_else(|| StoreError::not_found("model", id))?;
+        json(&row, "reference")
+    }
+
     /// A page of models, newest first.
     pub async fn models(&self, page: Page) -> Result<(Vec<ModelRecord>, i64), StoreError> {
         let rows = sqlx::query(AssertSqlSafe(format!(

@@ -6,13 +6,22 @@ use std::path::Path;
 use crate::support::crate_dir;
 
 /// Modules that must stay free of I/O frameworks.
-const PURE: [&str; 6] = ["mesh", "geometry", "segmentation", "nn", "eval", "models"];
+const PURE: [&str; 7] = [
+    "mesh",
+    "geometry",
+    "segmentation",
+    "nn",
+    "eval",
+    "models",
+    "report",
+];
 /// Crates a pure module must not use.
 const FORBIDDEN_CRATES: [&str; 5] = ["axum", "sqlx", "tokio", "tower", "reqwest"];
 /// Layers from top to bottom; a module may use only modules after it.
-const LAYERS: [&[&str]; 6] = [
+const LAYERS: [&[&str]; 7] = [
     &["api"],
     &["jobs"],
+    &["report"],
     &["store", "models"],
     &["nn", "eval"],
     &["geometry", "segmentation"],

@@ -228,6 +228,17 @@ async fn phantoms_to_model_to_reproducible_cohort() {
     }
     assert_eq!(strict["report"]["acceptance"]["range"], 1.0);
 
+    // Report pages: one violin per biomarker for the cohort; generalisation, specificity,
+    // matching and cumulative explained variance for the model.
+    let biomarkers = cohort["report"]["biomarkers"].as_object().unwrap().len();
+    let cohort_page = format!("/v1/cohorts/{}/report.html", cohort["id"].as_str().unwrap());
+    assert_eq!(
+        crate::reports::plots_on_page(&s, &cohort_page).await,
+        biomarkers
+    );
+    let model_page = format!("/v1/models/{model_id}/report.html");
+    assert_eq!(crate::reports::plots_on_page(&s, &model_page).await, 4);
+
     let member = |cohort: &Value| {
         s.url(&format!(
             "/v1/cohorts/{}/members/3/file?format=obj",

@@ -9,4 +9,5 @@ mod kits19;
 mod meshes;
 mod nifti;
 mod openapi;
+mod reports;
 mod support;

@@ -1,0 +1,114 @@
+//! `report.html` of a cohort: biomarker violins (training population against the cohort)
+//! with the three acceptance intervals, the acceptance table and the privacy guard.
+
+use std::collections::BTreeMap;
+use std::fmt::Write;
+
+use super::svg::{Band, Group, violin_plot};
+use super::{escape, mean_sd, page};
+use crate::models::cohort::CohortReport;
+use crate::models::reference::ReferencePopulation;
+
+/// What the cohort page shows.
+pub struct CohortPage<'a> {
+    /// Cohort id.
+    pub cohort_id: &'a str,
+    /// Model id.
+    pub model_id: &'a str,
+    /// The stored acceptance report.
+    pub report: &'a CohortReport,
+    /// Each biomarker's value per member, by biomarker name.
+    pub member_values: &'a BTreeMap<String, Vec<f64>>,
+    /// The model's training population.
+    pub reference: &'a ReferencePopulation,
+}
+
+/// The page as HTML; one plot per biomarker of the report.
+pub fn cohort_page(c: &CohortPage<'_>) -> String {
+    let mut body = String::new();
+    let size = c.member_values.values().map(Vec::len).max().unwrap_or(0);
+    let _ = write!(
+        body,
+        "<h1>Virtual cohort {}</h1><p>{size} members drawn from model <code>{}</code> in {} draws.</p>",
+        escape(c.cohort_id),
+        escape(c.model_id),
+        c.report.draws
+    );
+    body.push_str(&acceptance_table(c.report));
+    let p = &c.report.privacy;
+    let _ = write!(
+        body,
+        "<h2>Privacy guard</h2><p>{} near copies (nearer than {:.2} mm, the {}th percentile of the training shapes' own nearest-neighbour distances, {}); {} replaced by new draws.</p>",
+        p.near_copies,
+        p.threshold_mm,
+        (p.percentile * 100.0).round(),
+        escape(&p.distance),
+        p.near_copies_replaced
+    );
+    body.push_str(
+        "<h2>Biomarkers: training population against the cohort</h2><div class=\"plots\">",
+    );
+    for (name, b) in &c.report.biomarkers {
+        let training = c
+            .reference
+            .names
+            .iter()
+            .position(|n| n == name)
+            .and_then(|i| c.reference.values.get(i))
+            .map_or(&[][..], Vec::as_slice);
+        let cohort = c.member_values.get(name).map_or(&[][..], Vec::as_slice);
+        let groups = [
+            Group {
+                label: "training",
+                values: training,
+            },
+            Group {
+                label: "cohort",
+                values: cohort,
+            },
+        ];
+        let bands = [
+            Band {
+                label: "range",
+                interval: b.intervals.range,
+            },
+            Band {
+                label: "mode ± 3B",
+                interval: b.intervals.mode,
+            },
+            Band {
+                label: "mean ± 2σ",
+                interval: b.intervals.mean,
+            },
+        ];
+        body.push_str(&violin_plot(name, &b.unit, &groups, &bands));
+    }
+    body.push_str("</div><h2>Clusters</h2><p class=\"note\">This model has a single population (no clusters), so there is no per-cluster breakdown.</p>");
+    page(&format!("Cohort {}", c.cohort_id), &body)
+}
+
+fn acceptance_table(report: &CohortReport) -> String {
+    let mut t = String::from(
+        "<h2>Acceptance</h2><table><tr><th>biomarker</th><th>unit</th><th>training mean ± sd</th><th>cohort mean ± sd</th><th>A<sup>r</sup> (range)</th><th>A<sup>M</sup> (mode ± 3B)</th><th>A<sup>μ</sup> (mean ± 2σ)</th></tr>",
+    );
+    for (name, b) in &report.biomarkers {
+        let _ = write!(
+            t,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td></tr>",
+            escape(name),
+            escape(&b.unit),
+            mean_sd(b.reference.mean, b.reference.sd),
+            mean_sd(b.synthetic.mean, b.synthetic.sd),
+            b.acceptance.range,
+            b.acceptance.mode,
+            b.acceptance.mean
+        );
+    }
+    let a = &report.acceptance;
+    let _ = write!(
+        t,
+        "<tr><th>joint</th><td></td><td></td><td></td><th>{:.3}</th><th>{:.3}</th><th>{:.3}</th></tr></table>",
+        a.range, a.mode, a.mean
+    );
+    t
+}

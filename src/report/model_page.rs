@@ -1,0 +1,194 @@
+//! `report.html` of a model: distributions of generalisation, specificity and matching
+//! distances, the metric tables, cumulative explained variance and loss curves.
+
+use std::fmt::Write;
+
+use super::svg::{Group, Series, line_plot, violin_plot};
+use super::{escape, mean_sd, page};
+use crate::eval::metrics::DistanceSummary;
+use crate::geometry::distance::SurfaceDistances;
+use crate::models::ModelSummary;
+
+/// What the model page shows.
+pub struct ModelPage<'a> {
+    /// Model id.
+    pub model_id: &'a str,
+    /// Model type, e.g. `rsmp`.
+    pub model_type: &'a str,
+    /// The stored summary (evaluation, timings, explained variance).
+    pub summary: &'a ModelSummary,
+    /// Training loss per epoch, per named loss (empty for closed-form fits).
+    pub losses: &'a [(String, Vec<f64>)],
+}
+
+/// The page as HTML.
+pub fn model_page(m: &ModelPage<'_>) -> String {
+    let s = m.summary;
+    let e = &s.evaluation;
+    let mut body = String::new();
+    let _ = write!(
+        body,
+        "<h1>Model {} ({})</h1><p>Atlas of {} vertices; {} training and {} held-out meshes. Distances in mm, {} (tables also give point-to-surface distances).</p>",
+        escape(m.model_id),
+        escape(m.model_type),
+        s.atlas.vertex_count,
+        s.training_count,
+        s.holdout_count,
+        escape(&e.distance)
+    );
+    body.push_str(&metric_table(m));
+    body.push_str("<h2>Distributions</h2><div class=\"plots\">");
+    let per = &e.per_item;
+    for (title, pairs) in [
+        (
+            "Generalisation (held-out reconstructions)",
+            &per.generalisation,
+        ),
+        (
+            "Specificity (samples against the nearest training mesh)",
+            &per.specificity,
+        ),
+        (
+            "Matching (held-out meshes against their normalised shapes)",
+            &per.matching,
+        ),
+    ] {
+        if !pairs.is_empty() {
+            body.push_str(&distance_violins(title, pairs));
+        }
+    }
+    if let Some(explained) = &s.explained_variance {
+        let points: Vec<(f64, f64)> = explained
+            .iter()
+            .enumerate()
+            .map(|(i, v)| ((i + 1) as f64, *v))
+            .collect();
+        body.push_str(&line_plot(
+            "Cumulative explained variance",
+            "modes",
+            "fraction of variance",
+            &[Series {
+                label: "cumulative",
+                points: &points,
+            }],
+        ));
+    }
+    if !m.losses.is_empty() {
+        let curves: Vec<Vec<(f64, f64)>> = m
+            .losses
+            .iter()
+            .map(|(_, l)| {
+                l.iter()
+                    .enumerate()
+                    .map(|(i, v)| ((i + 1) as f64, *v))
+                    .collect()
+            })
+            .collect();
+        let series: Vec<Series<'_>> = m
+            .losses
+            .iter()
+            .zip(&curves)
+            .map(|((name, _), points)| Series {
+                label: name,
+                points,
+            })
+            .collect();
+        body.push_str(&line_plot("Training loss", "epoch", "loss", &series));
+    }
+    body.push_str("</div>");
+    if m.losses.is_empty() {
+        body.push_str("<p class=\"note\">No loss curves: this model is fitted in closed form (registration and PCA), not by gradient descent.</p>");
+    }
+    body.push_str(&timing_table(s));
+    page(&format!("Model {}", m.model_id), &body)
+}
+
+fn distance_violins(title: &str, pairs: &[SurfaceDistances]) -> String {
+    let column = |f: fn(&SurfaceDistances) -> f64| pairs.iter().map(f).collect::<Vec<f64>>();
+    let (hd, ed, ed_star) = (column(|d| d.hd), column(|d| d.ed), column(|d| d.ed_star));
+    violin_plot(
+        title,
+        "mm",
+        &[
+            Group {
+                label: "HD",
+                values: &hd,
+            },
+            Group {
+                label: "ED",
+                values: &ed,
+            },
+            Group {
+                label: "ED*",
+                values: &ed_star,
+            },
+        ],
+        &[],
+    )
+}
+
+fn summary_cells(s: Option<&DistanceSummary>) -> String {
+    match s {
+        Some(s) => [s.hd, s.ed, s.ed_star, s.cd]
+            .iter()
+            .map(|m| format!("<td>{}</td>", mean_sd(m.mean, m.std)))
+            .collect(),
+        None => "<td colspan=\"4\">no held-out meshes</td>".to_owned(),
+    }
+}
+
+fn metric_table(m: &ModelPage<'_>) -> String {
+    let e = &m.summary.evaluation;
+    let surface = e.point_to_surface.as_ref();
+    let mut t = String::from(
+        "<h2>Quality (mm, mean ± sd)</h2><table><tr><th>metric</th><th>distance</th><th>HD</th><th>ED</th><th>ED*</th><th>CD</th></tr>",
+    );
+    let rows = [
+        (
+            "generalisation",
+            e.generalisation.as_ref(),
+            surface.and_then(|s| s.generalisation.as_ref()),
+        ),
+        (
+            "specificity",
+            Some(&e.specificity),
+            surface.map(|s| &s.specificity),
+        ),
+        (
+            "matching",
+            e.matching.as_ref(),
+            surface.and_then(|s| s.matching.as_ref()),
+        ),
+    ];
+    for (name, vertex, on_surface) in rows {
+        let _ = write!(
+            t,
+            "<tr><td>{name}</td><td>{}</td>{}</tr>",
+            escape(&e.distance),
+            summary_cells(vertex)
+        );
+        if surface.is_some() {
+            let _ = write!(
+                t,
+                "<tr><td>{name}</td><td>point-to-surface</td>{}</tr>",
+                summary_cells(on_surface)
+            );
+        }
+    }
+    t.push_str("</table>");
+    t
+}
+
+fn timing_table(s: &ModelSummary) -> String {
+    let mut t = String::from("<h2>Fit time</h2><table><tr><th>stage</th><th>seconds</th></tr>");
+    for stage in &s.timings {
+        let _ = write!(
+            t,
+            "<tr><td>{}</td><td>{:.1}</td></tr>",
+            escape(&stage.stage),
+            stage.seconds
+        );
+    }
+    t.push_str("</table>");
+    t
+}
