@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use cohortforge::geometry::bvh::TriangleBvh;
 use cohortforge::mesh::Mesh;
 use cohortforge::mesh::validate::IngestOptions;
 use cohortforge::segmentation::{self, Limits, Options};
@@ -104,65 +105,15 @@ fn hausdorff_mm(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
     one_way(a, b).max(one_way(b, a))
 }
 
-/// Largest distance (mm) from a vertex of `dense` to the surface `coarse`, each vertex
-/// measured against the triangles around its 8 nearest coarse vertices.
+/// Largest distance (mm) from a vertex of `dense` to the surface `coarse` (exact closest
+/// points on its triangles).
 fn surface_deviation_mm(dense: &Mesh, coarse: &Mesh) -> f64 {
-    use kiddo::{ImmutableKdTree, SquaredEuclidean};
-    use std::num::NonZero;
-    let tree = ImmutableKdTree::<f64, 3>::new_from_slice(&coarse.vertices).expect("k-d tree");
-    let mut around = vec![Vec::new(); coarse.vertices.len()];
-    for (f, face) in coarse.faces.iter().enumerate() {
-        for &v in face {
-            around[v as usize].push(f);
-        }
-    }
-    let k = NonZero::new(8).expect("non-zero");
+    let surface = TriangleBvh::new(&coarse.vertices, &coarse.faces).expect("surface");
     dense
         .vertices
         .iter()
-        .map(|p| {
-            let near = tree
-                .query(p)
-                .nearest_n::<SquaredEuclidean<f64>>(k)
-                .execute();
-            near.iter()
-                .flat_map(|n| around[n.item as usize].iter())
-                .map(|&f| point_triangle_mm(*p, coarse.triangle(f)))
-                .fold(f64::INFINITY, f64::min)
-        })
+        .map(|p| surface.closest(*p).distance)
         .fold(0.0, f64::max)
-}
-
-/// Distance (mm) from `p` to the triangle `[a, b, c]` (Ericson, Real-Time Collision Detection).
-fn point_triangle_mm(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> f64 {
-    let sub = |u: [f64; 3], v: [f64; 3]| [u[0] - v[0], u[1] - v[1], u[2] - v[2]];
-    let dot = |u: [f64; 3], v: [f64; 3]| u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
-    let at = |s: f64, t: f64| [0, 1, 2].map(|i| a[i] + s * (b[i] - a[i]) + t * (c[i] - a[i]));
-    let (ab, ac, ap) = (sub(b, a), sub(c, a), sub(p, a));
-    let (d1, d2) = (dot(ab, ap), dot(ac, ap));
-    let bp = sub(p, b);
-    let (d3, d4) = (dot(ab, bp), dot(ac, bp));
-    let cp = sub(p, c);
-    let (d5, d6) = (dot(ab, cp), dot(ac, cp));
-    let (va, vb, vc) = (d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2);
-    let q = if d1 <= 0.0 && d2 <= 0.0 {
-        a
-    } else if d3 >= 0.0 && d4 <= d3 {
-        b
-    } else if d6 >= 0.0 && d5 <= d6 {
-        c
-    } else if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        at(d1 / (d1 - d3), 0.0)
-    } else if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        at(0.0, d2 / (d2 - d6))
-    } else if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        [0, 1, 2].map(|i| b[i] + w * (c[i] - b[i]))
-    } else {
-        let denom = 1.0 / (va + vb + vc);
-        at(vb * denom, vc * denom)
-    };
-    dot(sub(p, q), sub(p, q)).sqrt()
 }
 
 #[test]
