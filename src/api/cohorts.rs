@@ -15,7 +15,7 @@ use super::error::{ApiError, Problem};
 use super::extract::{Json, Path, Query};
 use super::meshes::{MeshFile, mesh_file_response};
 use super::models::{FormatQuery, load_model};
-use crate::eval::metrics::IndexedShapes;
+use crate::eval::privacy::CorrespondedShapes;
 use crate::geometry::pca::Sampling;
 use crate::mesh;
 use crate::models::ModelError;
@@ -182,9 +182,9 @@ async fn create_cohort(
         max_draws: body.size.saturating_mul(DRAWS_PER_MEMBER),
     };
     let (members, report) = tokio::task::spawn_blocking(move || {
-        let shapes = stored.training.to_f64();
+        let shapes = stored.training.normalised_f64();
         let training = TrainingIndex {
-            shapes: IndexedShapes::new(&shapes).map_err(ModelError::from)?,
+            shapes: CorrespondedShapes::new(&shapes).map_err(ModelError::from)?,
             privacy: &stored.training.privacy,
         };
         sample_cohort(stored.model.shape_model(), &reference, &training, &spec)

@@ -2,16 +2,16 @@
 //! the distance to its nearest training shape; members closer than the training set's own
 //! nearest-neighbour distances usually are (a low percentile) are flagged as near copies.
 //!
-//! The distance between two shapes is the symmetric mean closest-point distance
-//! `(ED(a, b) + ED(b, a)) / 2` in mm (half the Chamfer distance of SPEC §3).
+//! Shapes are compared in correspondence: members and the training shapes' normalised
+//! shapes share the atlas's vertices, and the distance is the mean distance between
+//! corresponding vertices in mm. A member that reproduces a patient's normalised shape is at
+//! distance 0. (It costs O(n_vertices) per pair, so checking 1,000 members against hundreds
+//! of patients stays cheap.)
 
 use serde::{Deserialize, Serialize};
 
 use super::EvalError;
-use super::metrics::{IndexedShapes, parallel_map};
-use crate::geometry::distance::directed;
-use crate::geometry::kdtree::PointCloudIndex;
-
+use super::metrics::parallel_map;
 /// Default percentile of the training nearest-neighbour distances used as the threshold.
 pub const DEFAULT_PERCENTILE: f64 = 0.05;
 
@@ -31,17 +31,20 @@ pub struct PrivacyThreshold {
 pub struct NearestTraining {
     /// Index of the training shape.
     pub index: usize,
-    /// Symmetric mean closest-point distance to it, mm.
+    /// Mean distance between corresponding vertices, mm.
     pub distance_mm: f64,
 }
 
-fn symmetric_mean(
-    a: &[[f64; 3]],
-    ia: &PointCloudIndex,
-    b: &[[f64; 3]],
-    ib: &PointCloudIndex,
-) -> f64 {
-    0.5 * (directed(a, ib).mean + directed(b, ia).mean)
+/// Mean distance (mm) between corresponding vertices of `a` and `b` (equal lengths).
+pub fn correspondence_distance(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    let sum: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| {
+            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+        })
+        .sum();
+    sum / a.len().max(1) as f64
 }
 
 /// Value at `p` (0–1) of `values` by linear interpolation between order statistics.
@@ -56,16 +59,61 @@ pub fn percentile(values: &[f64], p: f64) -> Option<f64> {
     Some(sorted[lo] + (sorted[hi] - sorted[lo]) * (position - lo as f64))
 }
 
-impl IndexedShapes<'_> {
-    /// The training shape nearest to `shape` (symmetric mean distance), ties to the lower index.
+/// Training shapes in correspondence (all with the same vertex count), `[n_vertices, 3]`
+/// each, mm.
+#[derive(Debug, Clone)]
+pub struct CorrespondedShapes<'a> {
+    shapes: Vec<&'a [[f64; 3]]>,
+}
+
+impl<'a> CorrespondedShapes<'a> {
+    /// Fails without shapes or when vertex counts differ.
+    pub fn new<S: AsRef<[[f64; 3]]>>(shapes: &'a [S]) -> Result<Self, EvalError> {
+        let shapes: Vec<&[[f64; 3]]> = shapes.iter().map(AsRef::as_ref).collect();
+        let n = shapes.first().map_or(0, |s| s.len());
+        if shapes.is_empty() || n == 0 {
+            return Err(EvalError::TooFewValues {
+                what: "training shapes",
+                required: 1,
+                found: 0,
+            });
+        }
+        if let Some(other) = shapes.iter().find(|s| s.len() != n) {
+            return Err(EvalError::DimensionMismatch {
+                what: "vertices of corresponding shapes",
+                expected: n,
+                found: other.len(),
+            });
+        }
+        Ok(Self { shapes })
+    }
+
+    /// Number of shapes.
+    pub fn len(&self) -> usize {
+        self.shapes.len()
+    }
+
+    /// Never true: construction needs a shape.
+    pub fn is_empty(&self) -> bool {
+        self.shapes.is_empty()
+    }
+
+    /// The training shape nearest to `shape` (same vertex count), ties to the lower index.
     pub fn nearest(&self, shape: &[[f64; 3]]) -> Result<NearestTraining, EvalError> {
-        let own = PointCloudIndex::new(shape)?;
+        let n = self.shapes[0].len();
+        if shape.len() != n {
+            return Err(EvalError::DimensionMismatch {
+                what: "vertices of the shape to compare",
+                expected: n,
+                found: shape.len(),
+            });
+        }
         let mut best = NearestTraining {
             index: 0,
             distance_mm: f64::INFINITY,
         };
-        for (k, (s, index)) in self.shapes.iter().zip(&self.indices).enumerate() {
-            let d = symmetric_mean(shape, &own, s, index);
+        for (k, s) in self.shapes.iter().enumerate() {
+            let d = correspondence_distance(shape, s);
             if d < best.distance_mm {
                 best = NearestTraining {
                     index: k,
@@ -73,65 +121,7 @@ impl IndexedShapes<'_> {
                 };
             }
         }
-        if best.distance_mm.is_finite() {
-            Ok(best)
-        } else {
-            Err(EvalError::TooFewValues {
-                what: "training shapes",
-                required: 1,
-                found: 0,
-            })
-        }
-    }
-
-    /// [`IndexedShapes::nearest`] in two stages for speed: every training shape is ranked by
-    /// the distance estimated on every `stride`-th vertex of both shapes, and the exact
-    /// distance is computed for the best `candidates` only.
-    pub fn nearest_pruned(
-        &self,
-        shape: &[[f64; 3]],
-        stride: usize,
-        candidates: usize,
-    ) -> Result<NearestTraining, EvalError> {
-        let own = PointCloudIndex::new(shape)?;
-        let stride = stride.max(1);
-        let coarse: Vec<[f64; 3]> = shape.iter().step_by(stride).copied().collect();
-        let mut estimates: Vec<(f64, usize)> = self
-            .shapes
-            .iter()
-            .zip(&self.indices)
-            .enumerate()
-            .map(|(k, (s, index))| {
-                let theirs: Vec<[f64; 3]> = s.iter().step_by(stride).copied().collect();
-                (
-                    0.5 * (directed(&coarse, index).mean + directed(&theirs, &own).mean),
-                    k,
-                )
-            })
-            .collect();
-        estimates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let mut best = NearestTraining {
-            index: 0,
-            distance_mm: f64::INFINITY,
-        };
-        for &(_, k) in estimates.iter().take(candidates.max(1)) {
-            let d = symmetric_mean(shape, &own, self.shapes[k], &self.indices[k]);
-            if d < best.distance_mm || (d == best.distance_mm && k < best.index) {
-                best = NearestTraining {
-                    index: k,
-                    distance_mm: d,
-                };
-            }
-        }
-        if best.distance_mm.is_finite() {
-            Ok(best)
-        } else {
-            Err(EvalError::TooFewValues {
-                what: "training shapes",
-                required: 1,
-                found: 0,
-            })
-        }
+        Ok(best)
     }
 
     /// The near-copy threshold: the `percentile` of each training shape's distance to its
@@ -148,14 +138,7 @@ impl IndexedShapes<'_> {
         let training_nn_mm = parallel_map(&ks, |&k| {
             (0..self.shapes.len())
                 .filter(|&j| j != k)
-                .map(|j| {
-                    symmetric_mean(
-                        self.shapes[k],
-                        &self.indices[k],
-                        self.shapes[j],
-                        &self.indices[j],
-                    )
-                })
+                .map(|j| correspondence_distance(self.shapes[k], self.shapes[j]))
                 .fold(f64::INFINITY, f64::min)
         });
         let threshold_mm = percentile(&training_nn_mm, percentile_p).unwrap_or(0.0);
@@ -190,8 +173,8 @@ mod tests {
             cloud(3.0, 20),
             cloud(6.0, 20),
         ];
-        let indexed = IndexedShapes::new(&training).unwrap();
-        let copy = indexed.nearest(&training[2]).unwrap();
+        let shapes = CorrespondedShapes::new(&training).unwrap();
+        let copy = shapes.nearest(&training[2]).unwrap();
         assert_eq!(
             copy,
             NearestTraining {
@@ -199,17 +182,26 @@ mod tests {
                 distance_mm: 0.0
             }
         );
-        let threshold = indexed.privacy_threshold(0.05).unwrap();
+        let threshold = shapes.privacy_threshold(0.05).unwrap();
         // Nearest-neighbour distances are 1, 1, 2, 3 (planes at z = 0, 1, 3, 6).
         assert_eq!(threshold.training_nn_mm, vec![1.0, 1.0, 2.0, 3.0]);
         assert!((threshold.threshold_mm - 1.0).abs() < 1e-12);
-        assert_eq!(indexed.nearest_pruned(&training[2], 3, 2).unwrap(), copy);
-        let shifted = indexed.nearest(&cloud(2.6, 20)).unwrap();
-        assert_eq!(
-            indexed.nearest_pruned(&cloud(2.6, 20), 4, 1).unwrap(),
-            shifted
-        );
+        let shifted = shapes.nearest(&cloud(2.6, 20)).unwrap();
         assert_eq!(shifted.index, 2);
         assert!((shifted.distance_mm - 0.4).abs() < 1e-12);
+    }
+
+    #[test]
+    fn shapes_out_of_correspondence_are_refused() {
+        let training = vec![cloud(0.0, 20), cloud(1.0, 19)];
+        assert!(CorrespondedShapes::new(&training).is_err());
+        let ok = vec![cloud(0.0, 20), cloud(1.0, 20)];
+        let shapes = CorrespondedShapes::new(&ok).unwrap();
+        assert!(shapes.nearest(&cloud(0.0, 21)).is_err());
+        // One vertex moved by 2 mm out of 4: a mean of 0.5 mm.
+        let a = [[0.0; 3]; 4];
+        let mut b = a;
+        b[1] = [0.0, 2.0, 0.0];
+        assert_eq!(correspondence_distance(&a, &b), 0.5);
     }
 }

@@ -10,8 +10,8 @@ use serde::{Deserialize, Serialize};
 use super::{ModelError, ReferencePopulation, ShapeModel};
 use crate::eval::Biomarkers;
 use crate::eval::acceptance::{Flags, Intervals, Rates, ReferenceStats, joint_acceptance_rates};
-use crate::eval::metrics::{IndexedShapes, parallel_map};
-use crate::eval::privacy::{NearestTraining, PrivacyThreshold};
+use crate::eval::metrics::parallel_map;
+use crate::eval::privacy::{CorrespondedShapes, NearestTraining, PrivacyThreshold};
 use crate::eval::stats::SummaryStats;
 use crate::geometry::pca::Sampling;
 use crate::mesh::Mesh;
@@ -152,10 +152,6 @@ fn joint_flags(intervals: &[Intervals], biomarkers: &Biomarkers) -> Flags {
 
 /// Draws evaluated together (in parallel, then taken in draw order).
 const DRAW_BATCH: u64 = 32;
-/// Every how many vertices the quick nearest-training estimate looks at.
-const NEAREST_STRIDE: usize = 8;
-/// Training shapes whose exact distance is computed after the quick estimate.
-const NEAREST_CANDIDATES: usize = 3;
 
 /// One draw: its shape, biomarkers, acceptance and nearest training shape.
 type Draw = (Mesh, Biomarkers, Flags, NearestTraining);
@@ -163,21 +159,22 @@ type Draw = (Mesh, Biomarkers, Flags, NearestTraining);
 fn evaluate_draw(
     model: &dyn ShapeModel,
     intervals: &[Intervals],
-    training: &IndexedShapes<'_>,
+    training: &CorrespondedShapes<'_>,
     spec: &CohortSpec,
     draw: u64,
 ) -> Result<Draw, ModelError> {
     let mesh = model.sample(&mut draw_rng(spec.seed, draw), spec.sampling)?;
     let biomarkers = Biomarkers::from_mesh(&mesh)?;
     let accepted = joint_flags(intervals, &biomarkers);
-    let nearest = training.nearest_pruned(&mesh.vertices, NEAREST_STRIDE, NEAREST_CANDIDATES)?;
+    let nearest = training.nearest(&mesh.vertices)?;
     Ok((mesh, biomarkers, accepted, nearest))
 }
 
 /// The training shapes a cohort is checked against.
 pub struct TrainingIndex<'a> {
-    /// Indexed training shapes (model frame, mm).
-    pub shapes: IndexedShapes<'a>,
+    /// The training shapes' normalised shapes, in correspondence with the members (model
+    /// frame, mm).
+    pub shapes: CorrespondedShapes<'a>,
     /// Near-copy threshold.
     pub privacy: &'a PrivacyThreshold,
 }
@@ -242,7 +239,7 @@ pub fn sample_cohort(
     let privacy = PrivacyReport {
         threshold_mm: training.privacy.threshold_mm,
         percentile: training.privacy.percentile,
-        distance: "symmetric mean closest-point distance".to_owned(),
+        distance: "mean distance between corresponding vertices".to_owned(),
         near_copies: members.iter().filter(|m| m.near_copy).count(),
         near_copies_replaced: replaced,
     };
@@ -314,6 +311,20 @@ mod tests {
         }
     }
 
+    /// One phantom (canonical frame, as after pre-alignment) scaled by 1, 0.9, 1.1 and 0.95
+    /// about the origin: training shapes in correspondence, as normalised shapes are.
+    fn scaled_copies(family: Family, seed: u64) -> Vec<Mesh> {
+        let mesh = phantom::subject(family, seed, 0).canonical_mesh();
+        [1.0, 0.9, 1.1, 0.95]
+            .iter()
+            .map(|k| {
+                let mut m = mesh.clone();
+                m.vertices.iter_mut().for_each(|p| *p = p.map(|c| k * c));
+                m
+            })
+            .collect()
+    }
+
     fn spec(size: usize, exclude_near_copies: bool) -> CohortSpec {
         CohortSpec {
             size,
@@ -329,17 +340,14 @@ mod tests {
     #[test]
     fn exact_training_shapes_are_flagged_and_can_be_replaced() {
         // In their canonical frame, as after pre-alignment.
-        let meshes: Vec<Mesh> = phantom::generate(Family::Liver, 4, 8)
-            .iter()
-            .map(|p| p.canonical_mesh())
-            .collect();
+        let meshes = scaled_copies(Family::Liver, 8);
         let shapes: Vec<Vec<[f64; 3]>> = meshes.iter().map(|m| m.vertices.clone()).collect();
-        let privacy = IndexedShapes::new(&shapes)
+        let privacy = CorrespondedShapes::new(&shapes)
             .unwrap()
             .privacy_threshold(0.05)
             .unwrap();
         let training = TrainingIndex {
-            shapes: IndexedShapes::new(&shapes).unwrap(),
+            shapes: CorrespondedShapes::new(&shapes).unwrap(),
             privacy: &privacy,
         };
         let reference = ReferencePopulation::from_meshes(&meshes).unwrap();
@@ -369,17 +377,14 @@ mod tests {
 
     #[test]
     fn acceptance_filter_and_its_bound() {
-        let meshes: Vec<Mesh> = phantom::generate(Family::Lv, 5, 2)
-            .iter()
-            .map(|p| p.canonical_mesh())
-            .collect();
+        let meshes = scaled_copies(Family::Lv, 2);
         let shapes: Vec<Vec<[f64; 3]>> = meshes.iter().map(|m| m.vertices.clone()).collect();
-        let privacy = IndexedShapes::new(&shapes)
+        let privacy = CorrespondedShapes::new(&shapes)
             .unwrap()
             .privacy_threshold(0.05)
             .unwrap();
         let training = TrainingIndex {
-            shapes: IndexedShapes::new(&shapes).unwrap(),
+            shapes: CorrespondedShapes::new(&shapes).unwrap(),
             privacy: &privacy,
         };
         let reference = ReferencePopulation::from_meshes(&meshes).unwrap();

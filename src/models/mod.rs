@@ -19,7 +19,7 @@ pub use error::ModelError;
 pub use evaluation::Evaluation;
 pub use reference::ReferencePopulation;
 
-use crate::eval::metrics::IndexedShapes;
+use crate::eval::privacy::CorrespondedShapes;
 use crate::eval::privacy::PrivacyThreshold;
 use crate::geometry::pca::Sampling;
 use crate::mesh::Mesh;
@@ -92,28 +92,51 @@ impl AnyModel {
 pub struct TrainingShapes {
     /// Vertices of each training mesh after pre-alignment, mm, `[n_vertices, 3]` each.
     pub shapes: Vec<Vec<[f32; 3]>>,
-    /// Near-copy threshold derived from the shapes' own nearest-neighbour distances.
+    /// Each training mesh's normalised shape (in correspondence with the atlas), mm,
+    /// `[n_atlas_vertices, 3]` each: what cohort members are compared with.
+    pub normalised: Vec<Vec<[f32; 3]>>,
+    /// Near-copy threshold derived from the normalised shapes' nearest-neighbour distances.
     pub privacy: PrivacyThreshold,
 }
 
+fn to_f32(shapes: &[Vec<[f64; 3]>]) -> Vec<Vec<[f32; 3]>> {
+    shapes
+        .iter()
+        .map(|s| s.iter().map(|p| p.map(|c| c as f32)).collect())
+        .collect()
+}
+
+fn to_f64(shapes: &[Vec<[f32; 3]>]) -> Vec<Vec<[f64; 3]>> {
+    shapes
+        .iter()
+        .map(|s| s.iter().map(|p| p.map(f64::from)).collect())
+        .collect()
+}
+
 impl TrainingShapes {
-    /// From aligned training vertices; the threshold is the `percentile` of their
-    /// nearest-neighbour distances.
-    pub fn new(aligned: &[Vec<[f64; 3]>], percentile: f64) -> Result<Self, ModelError> {
-        let privacy = IndexedShapes::new(aligned)?.privacy_threshold(percentile)?;
-        let shapes = aligned
-            .iter()
-            .map(|s| s.iter().map(|p| p.map(|c| c as f32)).collect())
-            .collect();
-        Ok(Self { shapes, privacy })
+    /// From aligned training vertices and their normalised shapes (model frame, mm); the
+    /// threshold is the `percentile` of the normalised shapes' nearest-neighbour distances.
+    pub fn new(
+        aligned: &[Vec<[f64; 3]>],
+        normalised: &[Vec<[f64; 3]>],
+        percentile: f64,
+    ) -> Result<Self, ModelError> {
+        let privacy = CorrespondedShapes::new(normalised)?.privacy_threshold(percentile)?;
+        Ok(Self {
+            shapes: to_f32(aligned),
+            normalised: to_f32(normalised),
+            privacy,
+        })
     }
 
-    /// The shapes in f64, for indexing.
+    /// The aligned training vertices in f64.
     pub fn to_f64(&self) -> Vec<Vec<[f64; 3]>> {
-        self.shapes
-            .iter()
-            .map(|s| s.iter().map(|p| p.map(f64::from)).collect())
-            .collect()
+        to_f64(&self.shapes)
+    }
+
+    /// The normalised shapes in f64.
+    pub fn normalised_f64(&self) -> Vec<Vec<[f64; 3]>> {
+        to_f64(&self.normalised)
     }
 }
 

@@ -255,7 +255,7 @@ pub fn fit(
         progress,
     )?;
     let reference = ReferencePopulation::from_meshes(training)?;
-    let training_shapes = TrainingShapes::new(&aligned, DEFAULT_PERCENTILE)?;
+    let training_shapes = TrainingShapes::new(&aligned, &shapes, DEFAULT_PERCENTILE)?;
     stages.close();
     let summary = ModelSummary {
         atlas: AtlasInfo {
