@@ -95,6 +95,5 @@ async fn model_report(
         model_id: &model.id,
         model_type: &model.model_type,
         summary: &summary,
-        losses: &[],
     })))
 }

@@ -108,10 +108,12 @@ pub(crate) fn parallel_map<T: Sync, U: Send>(items: &[T], f: impl Fn(&T) -> U + 
     })
 }
 
-/// Distances of pairs `(a[i], b[i])`; the lists must be equally long and non-empty.
-fn paired<A: AsRef<[[f64; 3]]> + Sync, B: AsRef<[[f64; 3]]> + Sync>(
+/// `distance` of each pair `(a[i], b[i])` (in parallel) and their summary; the lists must
+/// be equally long and non-empty.
+pub(crate) fn paired_with<A: Sync, B: Sync>(
     a: &[A],
     b: &[B],
+    distance: impl Fn(&A, &B) -> Result<SurfaceDistances, EvalError> + Sync,
 ) -> Result<PairedDistances, EvalError> {
     if a.len() != b.len() {
         return Err(EvalError::DimensionMismatch {
@@ -121,7 +123,19 @@ fn paired<A: AsRef<[[f64; 3]]> + Sync, B: AsRef<[[f64; 3]]> + Sync>(
         });
     }
     let pairs: Vec<(&A, &B)> = a.iter().zip(b).collect();
-    let per_pair = parallel_map(&pairs, |(g, h)| -> Result<SurfaceDistances, EvalError> {
+    let per_pair = parallel_map(&pairs, |(g, h)| distance(g, h))
+        .into_iter()
+        .collect::<Result<Vec<_>, _>>()?;
+    let summary = DistanceSummary::from_pairs(&per_pair)?;
+    Ok(PairedDistances { per_pair, summary })
+}
+
+/// Vertex-to-vertex distances of pairs `(a[i], b[i])`.
+fn paired<A: AsRef<[[f64; 3]]> + Sync, B: AsRef<[[f64; 3]]> + Sync>(
+    a: &[A],
+    b: &[B],
+) -> Result<PairedDistances, EvalError> {
+    paired_with(a, b, |g, h| {
         let (g, h) = (g.as_ref(), h.as_ref());
         Ok(surface_distances_indexed(
             g,
@@ -130,10 +144,6 @@ fn paired<A: AsRef<[[f64; 3]]> + Sync, B: AsRef<[[f64; 3]]> + Sync>(
             &PointCloudIndex::new(h)?,
         ))
     })
-    .into_iter()
-    .collect::<Result<Vec<_>, _>>()?;
-    let summary = DistanceSummary::from_pairs(&per_pair)?;
-    Ok(PairedDistances { per_pair, summary })
 }
 
 /// Generalisation: distances between each reconstruction (`g`) of a held-out shape and the

@@ -3,9 +3,9 @@
 //! because they do not depend on how finely the shapes are sampled.
 
 use super::EvalError;
-use super::metrics::{DistanceSummary, PairedDistances, parallel_map};
+use super::metrics::{PairedDistances, paired_with};
 use crate::geometry::bvh::TriangleBvh;
-use crate::geometry::distance::{SurfaceDistances, point_to_surface_distances};
+use crate::geometry::distance::point_to_surface_distances;
 
 /// A triangle surface: vertices `[n_vertices, 3]` in mm and faces `[n_faces, 3]`.
 #[derive(Debug, Clone, Copy)]
@@ -22,25 +22,13 @@ pub fn paired_point_to_surface(
     a: &[Surface<'_>],
     b: &[Surface<'_>],
 ) -> Result<PairedDistances, EvalError> {
-    if a.len() != b.len() {
-        return Err(EvalError::DimensionMismatch {
-            what: "paired surfaces",
-            expected: a.len(),
-            found: b.len(),
-        });
-    }
-    let pairs: Vec<(&Surface<'_>, &Surface<'_>)> = a.iter().zip(b).collect();
-    let per_pair = parallel_map(&pairs, |(g, h)| -> Result<SurfaceDistances, EvalError> {
+    paired_with(a, b, |g, h| {
         let g_bvh = TriangleBvh::new(g.vertices, g.faces)?;
         let h_bvh = TriangleBvh::new(h.vertices, h.faces)?;
         Ok(point_to_surface_distances(
             g.vertices, &g_bvh, h.vertices, &h_bvh,
         ))
     })
-    .into_iter()
-    .collect::<Result<Vec<_>, _>>()?;
-    let summary = DistanceSummary::from_pairs(&per_pair)?;
-    Ok(PairedDistances { per_pair, summary })
 }
 
 #[cfg(test)]

@@ -20,6 +20,18 @@ pub struct SurfaceDistances {
     pub cd: f64,
 }
 
+impl SurfaceDistances {
+    /// From the one-sided distances `g → g'` (`ab`) and `g' → g` (`ba`).
+    pub fn from_directed(ab: DirectedDistance, ba: DirectedDistance) -> Self {
+        Self {
+            hd: ab.max.max(ba.max),
+            ed: ab.mean,
+            ed_star: ba.mean,
+            cd: ab.mean + ba.mean,
+        }
+    }
+}
+
 /// One-sided closest-point distances from `points` to an indexed set.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DirectedDistance {
@@ -58,14 +70,7 @@ pub fn surface_distances_indexed(
     b: &[[f64; 3]],
     b_index: &PointCloudIndex,
 ) -> SurfaceDistances {
-    let ab = directed(a, b_index);
-    let ba = directed(b, a_index);
-    SurfaceDistances {
-        hd: ab.max.max(ba.max),
-        ed: ab.mean,
-        ed_star: ba.mean,
-        cd: ab.mean + ba.mean,
-    }
+    SurfaceDistances::from_directed(directed(a, b_index), directed(b, a_index))
 }
 
 /// Distances between vertex sets `a` (`g`) and `b` (`g'`), `[n, 3]` in mm.
@@ -106,14 +111,10 @@ pub fn point_to_surface_distances(
     b: &[[f64; 3]],
     b_surface: &TriangleBvh,
 ) -> SurfaceDistances {
-    let ab = directed_to_surface(a, b_surface);
-    let ba = directed_to_surface(b, a_surface);
-    SurfaceDistances {
-        hd: ab.max.max(ba.max),
-        ed: ab.mean,
-        ed_star: ba.mean,
-        cd: ab.mean + ba.mean,
-    }
+    SurfaceDistances::from_directed(
+        directed_to_surface(a, b_surface),
+        directed_to_surface(b, a_surface),
+    )
 }
 
 #[cfg(test)]

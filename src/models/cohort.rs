@@ -325,6 +325,16 @@ mod tests {
             .collect()
     }
 
+    /// The meshes' vertices as corresponding training shapes, and their privacy threshold.
+    fn privacy_of(meshes: &[Mesh]) -> (Vec<Vec<[f64; 3]>>, PrivacyThreshold) {
+        let shapes: Vec<Vec<[f64; 3]>> = meshes.iter().map(|m| m.vertices.clone()).collect();
+        let privacy = CorrespondedShapes::new(&shapes)
+            .unwrap()
+            .privacy_threshold(0.05)
+            .unwrap();
+        (shapes, privacy)
+    }
+
     fn spec(size: usize, exclude_near_copies: bool) -> CohortSpec {
         CohortSpec {
             size,
@@ -341,11 +351,7 @@ mod tests {
     fn exact_training_shapes_are_flagged_and_can_be_replaced() {
         // In their canonical frame, as after pre-alignment.
         let meshes = scaled_copies(Family::Liver, 8);
-        let shapes: Vec<Vec<[f64; 3]>> = meshes.iter().map(|m| m.vertices.clone()).collect();
-        let privacy = CorrespondedShapes::new(&shapes)
-            .unwrap()
-            .privacy_threshold(0.05)
-            .unwrap();
+        let (shapes, privacy) = privacy_of(&meshes);
         let training = TrainingIndex {
             shapes: CorrespondedShapes::new(&shapes).unwrap(),
             privacy: &privacy,
@@ -378,11 +384,7 @@ mod tests {
     #[test]
     fn acceptance_filter_and_its_bound() {
         let meshes = scaled_copies(Family::Lv, 2);
-        let shapes: Vec<Vec<[f64; 3]>> = meshes.iter().map(|m| m.vertices.clone()).collect();
-        let privacy = CorrespondedShapes::new(&shapes)
-            .unwrap()
-            .privacy_threshold(0.05)
-            .unwrap();
+        let (shapes, privacy) = privacy_of(&meshes);
         let training = TrainingIndex {
             shapes: CorrespondedShapes::new(&shapes).unwrap(),
             privacy: &privacy,

@@ -196,6 +196,18 @@ pub struct ModelSummary {
     pub holdout_count: usize,
     /// Time per stage.
     pub timings: Vec<StageTiming>,
+    /// Mean training loss per epoch of each trained network (none for closed-form fits).
+    #[serde(default)]
+    pub losses: Vec<LossCurve>,
+}
+
+/// The mean training loss per epoch of one network.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct LossCurve {
+    /// Which network, e.g. `graph_vae`.
+    pub network: String,
+    /// Mean loss of each epoch, in order.
+    pub per_epoch: Vec<f64>,
 }
 
 /// A fit's result: the model, its summary and the reference population.

@@ -275,6 +275,7 @@ pub fn fit(
                 seconds: *t,
             })
             .collect(),
+        losses: Vec::new(),
     };
     let model = StoredModel {
         model: AnyModel::Rsmp(model),

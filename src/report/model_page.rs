@@ -15,10 +15,8 @@ pub struct ModelPage<'a> {
     pub model_id: &'a str,
     /// Model type, e.g. `rsmp`.
     pub model_type: &'a str,
-    /// The stored summary (evaluation, timings, explained variance).
+    /// The stored summary (evaluation, timings, explained variance, losses).
     pub summary: &'a ModelSummary,
-    /// Training loss per epoch, per named loss (empty for closed-form fits).
-    pub losses: &'a [(String, Vec<f64>)],
 }
 
 /// The page as HTML.
@@ -73,30 +71,22 @@ pub fn model_page(m: &ModelPage<'_>) -> String {
             }],
         ));
     }
-    if !m.losses.is_empty() {
-        let curves: Vec<Vec<(f64, f64)>> = m
-            .losses
+    for curve in &s.losses {
+        let points: Vec<(f64, f64)> = curve
+            .per_epoch
             .iter()
-            .map(|(_, l)| {
-                l.iter()
-                    .enumerate()
-                    .map(|(i, v)| ((i + 1) as f64, *v))
-                    .collect()
-            })
+            .enumerate()
+            .map(|(i, v)| ((i + 1) as f64, *v))
             .collect();
-        let series: Vec<Series<'_>> = m
-            .losses
-            .iter()
-            .zip(&curves)
-            .map(|((name, _), points)| Series {
-                label: name,
-                points,
-            })
-            .collect();
-        body.push_str(&line_plot("Training loss", "epoch", "loss", &series));
+        let series = [Series {
+            label: "mean loss per epoch",
+            points: &points,
+        }];
+        let title = format!("Training loss: {}", curve.network);
+        body.push_str(&line_plot(&title, "epoch", "loss", &series));
     }
     body.push_str("</div>");
-    if m.losses.is_empty() {
+    if s.losses.is_empty() {
         body.push_str("<p class=\"note\">No loss curves: this model is fitted in closed form (registration and PCA), not by gradient descent.</p>");
     }
     body.push_str(&timing_table(s));
