@@ -130,6 +130,8 @@ pub fn run(args: &BenchArgs) -> CliResult {
         phantoms: args.fidelity_phantoms,
         seed: fidelity_seed,
         volumes: SummaryStats::from_values(&data.fresh_volumes).map_err(text)?,
+        training_exact_volumes: SummaryStats::from_values(&exact).map_err(text)?,
+        training_measured_volumes: SummaryStats::from_values(&measured).map_err(text)?,
         training_exact: Fidelity::between(&exact, &data.fresh_volumes).map_err(text)?,
         training_measured: Fidelity::between(&measured, &data.fresh_volumes).map_err(text)?,
     };

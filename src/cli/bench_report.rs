@@ -44,6 +44,10 @@ pub struct ReferenceFidelity {
     pub seed: u64,
     /// Their exact volumes, ml.
     pub volumes: SummaryStats,
+    /// Exact volumes of the training phantoms, ml.
+    pub training_exact_volumes: SummaryStats,
+    /// Mesh-measured volumes of the training phantoms, ml.
+    pub training_measured_volumes: SummaryStats,
     /// Exact volumes of the training phantoms against the fresh ones (sampling noise).
     pub training_exact: Fidelity,
     /// Mesh-measured volumes of the training phantoms against the fresh exact ones
@@ -223,12 +227,10 @@ fn cohort_table(report: &BenchReport) -> String {
     table(&header("cohort", report), &rows)
 }
 
-fn fidelity_row(label: &str, volumes: Option<&SummaryStats>, f: &Fidelity) -> Vec<String> {
-    let v = volumes.map_or(MISSING.to_owned(), |s| {
-        mean_std(MeanStd {
-            mean: s.mean,
-            std: s.sd,
-        })
+fn fidelity_row(label: &str, volumes: &SummaryStats, f: &Fidelity) -> Vec<String> {
+    let v = mean_std(MeanStd {
+        mean: volumes.mean,
+        std: volumes.sd,
     });
     vec![
         label.to_owned(),
@@ -252,18 +254,26 @@ fn fidelity_table(report: &BenchReport) -> String {
             "generator: fresh phantoms, exact".to_owned(),
             r.phantoms.to_string(),
             mean_std(generator),
-            "0".to_owned(),
-            "0".to_owned(),
-            "1".to_owned(),
+            "–".to_owned(),
+            "–".to_owned(),
+            "–".to_owned(),
         ],
-        fidelity_row("training phantoms, exact", None, &r.training_exact),
-        fidelity_row("training meshes, measured", None, &r.training_measured),
+        fidelity_row(
+            "training phantoms, exact",
+            &r.training_exact_volumes,
+            &r.training_exact,
+        ),
+        fidelity_row(
+            "training meshes, measured",
+            &r.training_measured_volumes,
+            &r.training_measured,
+        ),
     ];
     for m in &report.models {
         let label = format!("{} cohort, measured", m.model);
         rows.push(fidelity_row(
             &label,
-            Some(&m.fidelity.synthetic),
+            &m.fidelity.synthetic,
             &m.fidelity.fidelity,
         ));
     }

@@ -253,7 +253,10 @@ pub fn evaluate_model(args: &EvaluateArgs) -> CliResult {
     let step = Instant::now();
     let test = read_mesh_dir(&args.test)?;
     timings.push(timing("read_test_meshes", step));
-    let samples = args.samples.unwrap_or(file.training_faces.len()).max(1);
+    let samples = args.samples.unwrap_or(file.training_faces.len());
+    if samples == 0 {
+        return Err("--samples must be at least 1".to_owned());
+    }
     let seed = args.seed.unwrap_or(file.seed);
     let model = stored.model.shape_model();
     let aligned = stored.training.to_f64();
