@@ -4,6 +4,7 @@
 pub mod acceptance;
 pub mod biomarkers;
 mod error;
+pub mod fidelity;
 pub mod kde;
 pub mod metrics;
 pub mod privacy;

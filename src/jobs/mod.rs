@@ -1,5 +1,6 @@
 //! Durable fit jobs: validation at submission, the worker pool, and the run of one job.
 
+pub mod fit;
 pub mod params;
 pub mod run;
 pub mod split;

@@ -2,11 +2,12 @@
 
 use tokio::runtime::Handle;
 
+use super::fit::fit_model;
 use super::params::ModelParams;
 use super::split::holdout_split;
 use crate::mesh::Mesh;
 use crate::models::progress::Progress;
-use crate::models::{FitOutcome, ModelError, ModelType, rsmp};
+use crate::models::{FitOutcome, ModelError, ModelType};
 use crate::store::jobs::Job;
 use crate::store::models::{NewModel, Provenance};
 use crate::store::{Store, StoreError};
@@ -91,16 +92,14 @@ pub fn run_job(
         .ok_or_else(|| RunError::Invalid(format!("unknown model type {}", job.model_type)))?;
     let params = ModelParams::parse(model_type, &job.params)?;
     let split = load_split(handle, store, job, params.template_mesh_id())?;
-    let outcome: FitOutcome = match &params {
-        ModelParams::Rsmp(p) => rsmp::fit(
-            &split.training,
-            &split.holdout,
-            p,
-            split.template_index,
-            job.seed,
-            progress,
-        )?,
-    };
+    let outcome: FitOutcome = fit_model(
+        &params,
+        &split.training,
+        &split.holdout,
+        split.template_index,
+        job.seed,
+        progress,
+    )?;
     let json = |v: Result<serde_json::Value, serde_json::Error>| {
         v.map_err(|e| RunError::Invalid(e.to_string()))
     };

@@ -3,6 +3,7 @@
 mod architecture;
 mod auth;
 mod bad_uploads;
+mod cli;
 mod datasets;
 mod jobs;
 mod kits19;

@@ -1,4 +1,14 @@
-//! Command-line interface: `cohortforge` serves the API; subcommands run offline tasks.
+//! Command-line interface: `cohortforge` serves the API; subcommands run offline tasks
+//! (phantoms, fitting and evaluating models on directories of meshes, benchmarks).
+
+pub mod bench;
+pub mod bench_report;
+pub mod memory;
+pub mod mesh_dir;
+pub mod model_file;
+pub mod progress;
+pub mod study;
+pub mod tables;
 
 use std::path::{Path, PathBuf};
 
@@ -30,6 +40,13 @@ pub enum Command {
     Phantoms(PhantomArgs),
     /// Print the OpenAPI document as JSON.
     Openapi,
+    /// Fit a shape model to a directory of meshes and write a model file.
+    Fit(study::FitArgs),
+    /// Evaluate a model file on test meshes: generalisation, matching, specificity,
+    /// cohort acceptance, timings.
+    Evaluate(study::EvaluateArgs),
+    /// Fit models on phantoms with known ground truth and print benchmark tables.
+    Bench(bench::BenchArgs),
 }
 
 /// Arguments of `cohortforge phantoms`.
@@ -65,6 +82,9 @@ pub fn run(cli: Cli) -> CliResult {
         None => serve(cli.serve),
         Some(Command::Serve(config)) => serve(config),
         Some(Command::Phantoms(args)) => write_phantoms(&args),
+        Some(Command::Fit(args)) => study::fit(&args),
+        Some(Command::Evaluate(args)) => study::evaluate_model(&args),
+        Some(Command::Bench(args)) => bench::run(&args),
         Some(Command::Openapi) => {
             let json = crate::api::openapi()
                 .to_pretty_json()
@@ -126,4 +146,10 @@ fn write_phantoms(args: &PhantomArgs) -> CliResult {
 
 fn io_error(path: &Path, e: std::io::Error) -> String {
     format!("{}: {e}", path.display())
+}
+
+/// Writes `value` as pretty JSON to `path`.
+fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> CliResult {
+    let json = serde_json::to_vec_pretty(value).map_err(|e| e.to_string())?;
+    std::fs::write(path, json).map_err(|e| io_error(path, e))
 }

@@ -1,0 +1,292 @@
+//! `cohortforge bench`: fits each model type on the same split of phantoms with known ground
+//! truth, and measures quality (thesis tables 4.4–4.7), speed, memory and the fidelity of
+//! the synthetic volume distribution to the generator's own.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use super::bench_report::{
+    BenchReport, CohortBench, FitBench, ModelBench, ReferenceFidelity, SpecificityBench,
+    VolumeFidelity, print_markdown,
+};
+use super::memory::{self, StepMemory};
+use super::progress::StderrProgress;
+use super::study::{parse_model_type, parse_params};
+use super::{CliResult, write_json};
+use crate::eval::SummaryStats;
+use crate::eval::fidelity::Fidelity;
+use crate::eval::metrics::IndexedShapes;
+use crate::geometry::pca::Sampling;
+use crate::jobs::ModelParams;
+use crate::jobs::fit::fit_model;
+use crate::mesh::measures::volume_ml;
+use crate::mesh::{Mesh, phantom};
+use crate::models::cohort::{CohortSpec, Criterion, TrainingIndex, sample_cohort};
+use crate::models::evaluation::evaluate;
+use crate::models::progress::Stages;
+use crate::models::{ModelError, ModelType, ShapeModel};
+
+/// Added to the bench seed for the fresh phantoms of the fidelity check, so that they are
+/// not the training or test subjects.
+pub const FIDELITY_SEED_OFFSET: u64 = 0xf1de_117e;
+
+/// Arguments of `cohortforge bench`.
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// Phantom family: `lv` or `liver`.
+    #[arg(long)]
+    pub family: phantom::Family,
+    /// Training phantoms.
+    #[arg(long, default_value_t = 100)]
+    pub train: usize,
+    /// Test phantoms (held out from every fit).
+    #[arg(long, default_value_t = 25)]
+    pub test: usize,
+    /// Model types to compare, comma-separated.
+    #[arg(long, value_delimiter = ',', value_parser = parse_model_type, default_value = "rsmp")]
+    pub models: Vec<ModelType>,
+    /// Parameters of one model type as `TYPE=JSON` (repeatable; defaults otherwise).
+    #[arg(long = "params", value_name = "TYPE=JSON")]
+    pub params: Vec<String>,
+    /// Random seed of the phantoms, the fits and the samples.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Members of the cohort timed and judged for acceptance and fidelity.
+    #[arg(long, default_value_t = 1000)]
+    pub cohort_size: usize,
+    /// Samples of the timed specificity evaluation against the training meshes.
+    #[arg(long, default_value_t = 1000)]
+    pub specificity_samples: usize,
+    /// Fresh phantoms whose exact volumes stand for the generator's distribution.
+    #[arg(long, default_value_t = 200)]
+    pub fidelity_phantoms: usize,
+    /// JSON file to write every figure to.
+    #[arg(long)]
+    pub json: PathBuf,
+}
+
+/// The phantoms every model sees.
+struct BenchData {
+    training: Vec<Mesh>,
+    test: Vec<Mesh>,
+    /// Exact volumes of fresh phantoms, ml.
+    fresh_volumes: Vec<f64>,
+}
+
+fn model_params(args: &BenchArgs) -> Result<Vec<(ModelType, ModelParams)>, String> {
+    let mut given: Vec<(ModelType, &str)> = Vec::new();
+    for p in &args.params {
+        let (name, json) = p
+            .split_once('=')
+            .ok_or_else(|| format!("--params {p}: expected TYPE=JSON"))?;
+        given.push((parse_model_type(name.trim())?, json));
+    }
+    args.models
+        .iter()
+        .map(|&t| {
+            let json = given.iter().find(|(g, _)| *g == t).map(|(_, j)| *j);
+            Ok((t, parse_params(t, json)?))
+        })
+        .collect()
+}
+
+fn check(args: &BenchArgs) -> CliResult {
+    let positive = [
+        ("--train", args.train),
+        ("--cohort-size", args.cohort_size),
+        ("--specificity-samples", args.specificity_samples),
+        ("--fidelity-phantoms", args.fidelity_phantoms),
+        ("--models", args.models.len()),
+    ];
+    match positive.iter().find(|(_, n)| *n == 0) {
+        Some((flag, _)) => Err(format!("{flag} must be at least 1")),
+        None => Ok(()),
+    }
+}
+
+/// Runs `cohortforge bench`.
+pub fn run(args: &BenchArgs) -> CliResult {
+    check(args)?;
+    let started = Instant::now();
+    let params = model_params(args)?;
+    eprintln!(
+        "generating {} + {} {} phantoms (seed {})",
+        args.train, args.test, args.family, args.seed
+    );
+    let mut phantoms = phantom::generate(args.family, args.train + args.test, args.seed);
+    let test_phantoms = phantoms.split_off(args.train.min(phantoms.len()));
+    let fidelity_seed = args.seed.wrapping_add(FIDELITY_SEED_OFFSET);
+    let fresh = phantom::generate(args.family, args.fidelity_phantoms, fidelity_seed);
+    let data = BenchData {
+        training: phantoms.iter().map(|p| p.mesh.clone()).collect(),
+        test: test_phantoms.into_iter().map(|p| p.mesh).collect(),
+        fresh_volumes: fresh.iter().map(|p| p.params.volume_ml).collect(),
+    };
+    drop(fresh);
+    let exact: Vec<f64> = phantoms.iter().map(|p| p.params.volume_ml).collect();
+    let measured: Vec<f64> = data.training.iter().map(volume_ml).collect();
+    let text = |e: crate::eval::EvalError| e.to_string();
+    let reference = ReferenceFidelity {
+        phantoms: args.fidelity_phantoms,
+        seed: fidelity_seed,
+        volumes: SummaryStats::from_values(&data.fresh_volumes).map_err(text)?,
+        training_exact_volumes: SummaryStats::from_values(&exact).map_err(text)?,
+        training_measured_volumes: SummaryStats::from_values(&measured).map_err(text)?,
+        training_exact: Fidelity::between(&exact, &data.fresh_volumes).map_err(text)?,
+        training_measured: Fidelity::between(&measured, &data.fresh_volumes).map_err(text)?,
+    };
+    drop(phantoms);
+    let mut models = Vec::new();
+    let mut peak_mib = memory::resident().map_or(0.0, |r| r.peak_mib);
+    for (model_type, p) in &params {
+        let bench = bench_model(*model_type, p, &data, args)?;
+        let steps = [
+            bench.fit.memory,
+            bench.cohort.memory,
+            bench.specificity.memory,
+        ];
+        for m in steps.iter().flatten() {
+            peak_mib = peak_mib.max(m.peak_mib);
+        }
+        models.push(bench);
+    }
+    let report = BenchReport {
+        family: args.family.as_str().to_owned(),
+        train: data.training.len(),
+        test: data.test.len(),
+        seed: args.seed,
+        vertex_counts: vertex_range(&data.training, &data.test),
+        fidelity_reference: reference,
+        models,
+        process_peak_mib: memory::resident().map(|r| r.peak_mib.max(peak_mib)),
+        total_seconds: started.elapsed().as_secs_f64(),
+    };
+    write_json(&args.json, &report)?;
+    print_markdown(&report);
+    Ok(())
+}
+
+fn vertex_range(training: &[Mesh], test: &[Mesh]) -> [usize; 2] {
+    let counts = training.iter().chain(test).map(Mesh::vertex_count);
+    let min = counts.clone().min().unwrap_or(0);
+    [min, counts.max().unwrap_or(0)]
+}
+
+fn bench_model(
+    model_type: ModelType,
+    params: &ModelParams,
+    data: &BenchData,
+    args: &BenchArgs,
+) -> Result<ModelBench, String> {
+    let name = model_type.as_str();
+    eprintln!("fitting {name} on {} meshes", data.training.len());
+    let mut progress = StderrProgress::new(name);
+    let started = Instant::now();
+    let (outcome, fit_memory) = memory::measure(|| {
+        fit_model(
+            params,
+            &data.training,
+            &data.test,
+            None,
+            args.seed,
+            &mut progress,
+        )
+    });
+    let outcome = outcome.map_err(|e| e.to_string())?;
+    let fit = FitBench {
+        seconds: started.elapsed().as_secs_f64(),
+        stages: outcome.summary.timings.clone(),
+        epochs: progress.epoch_timings(),
+        memory: fit_memory,
+    };
+    let stored = &outcome.model;
+    let model = stored.model.shape_model();
+    let aligned = stored.training.to_f64();
+
+    eprintln!("{name}: sampling a cohort of {}", args.cohort_size);
+    let spec = CohortSpec {
+        size: args.cohort_size,
+        seed: args.seed,
+        sampling: Sampling::Gaussian,
+        criterion: Criterion::Mean,
+        only_accepted: false,
+        exclude_near_copies: false,
+        max_draws: args.cohort_size,
+    };
+    let started = Instant::now();
+    let (cohort, cohort_memory) = memory::measure(|| -> Result<_, ModelError> {
+        let index = TrainingIndex {
+            shapes: IndexedShapes::new(&aligned)?,
+            privacy: &stored.training.privacy,
+        };
+        sample_cohort(model, &outcome.reference, &index, &spec)
+    });
+    let (members, report) = cohort.map_err(|e| e.to_string())?;
+    let seconds = started.elapsed().as_secs_f64();
+    let volumes: Vec<f64> = members.iter().map(|m| m.biomarkers.volume_ml).collect();
+    drop(members);
+    let text = |e: crate::eval::EvalError| e.to_string();
+    let fidelity = VolumeFidelity {
+        synthetic: SummaryStats::from_values(&volumes).map_err(text)?,
+        fidelity: Fidelity::between(&volumes, &data.fresh_volumes).map_err(text)?,
+    };
+    let cohort = CohortBench {
+        size: args.cohort_size,
+        seconds,
+        members_per_second: args.cohort_size as f64 / seconds.max(f64::MIN_POSITIVE),
+        memory: cohort_memory,
+        report,
+    };
+    let faces: Vec<&[[u32; 3]]> = data.training.iter().map(|m| m.faces.as_slice()).collect();
+    let specificity = time_specificity(model, &aligned, &faces, args)?;
+    Ok(ModelBench {
+        model: name.to_owned(),
+        params: params.to_json(),
+        n_modes: outcome.summary.n_modes,
+        fit,
+        evaluation: outcome.summary.evaluation,
+        cohort,
+        fidelity,
+        specificity,
+    })
+}
+
+/// Times specificity of `args.specificity_samples` samples against the training meshes,
+/// vertex-to-vertex and point-to-surface.
+fn time_specificity(
+    model: &dyn ShapeModel,
+    aligned: &[Vec<[f64; 3]>],
+    faces: &[&[[u32; 3]]],
+    args: &BenchArgs,
+) -> Result<SpecificityBench, String> {
+    let n = args.specificity_samples;
+    eprintln!(
+        "specificity of {n} samples against {} training meshes",
+        aligned.len()
+    );
+    let mut stages = Stages::new(&[("specificity", 1.0)]);
+    stages.enter("specificity");
+    let mut progress = StderrProgress::new("specificity");
+    let started = Instant::now();
+    let (evaluation, memory): (_, Option<StepMemory>) = memory::measure(|| {
+        evaluate(
+            model,
+            aligned,
+            faces,
+            &[],
+            n,
+            args.seed,
+            &stages,
+            &mut progress,
+        )
+    });
+    let evaluation = evaluation.map_err(|e| e.to_string())?;
+    Ok(SpecificityBench {
+        samples: n,
+        training_meshes: aligned.len(),
+        seconds: started.elapsed().as_secs_f64(),
+        memory,
+        vertex_to_vertex: evaluation.specificity,
+        point_to_surface: evaluation.point_to_surface.map(|s| s.specificity),
+    })
+}

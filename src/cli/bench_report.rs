@@ -1,0 +1,378 @@
+//! What `cohortforge bench` measures, as JSON and as markdown tables.
+
+use serde::Serialize;
+
+use super::memory::StepMemory;
+use super::progress::EpochTiming;
+use super::study::{DISTANCE_KINDS, evaluation_markdown};
+use super::tables::{DISTANCES, MISSING, acceptance_table, distance_table, mean_std, table};
+use crate::eval::fidelity::Fidelity;
+use crate::eval::metrics::DistanceSummary;
+use crate::eval::{MeanStd, SummaryStats};
+use crate::models::cohort::CohortReport;
+use crate::models::{Evaluation, StageTiming};
+
+/// Everything one bench run measured.
+#[derive(Debug, Serialize)]
+pub struct BenchReport {
+    /// Phantom family.
+    pub family: String,
+    /// Training phantoms.
+    pub train: usize,
+    /// Test phantoms.
+    pub test: usize,
+    /// Seed of phantoms, fits and samples.
+    pub seed: u64,
+    /// Fewest and most vertices of the training and test meshes.
+    pub vertex_counts: [usize; 2],
+    /// The generator's volume distribution and how close the training phantoms are to it.
+    pub fidelity_reference: ReferenceFidelity,
+    /// One entry per model type.
+    pub models: Vec<ModelBench>,
+    /// Peak resident memory of the process (VmHWM), MiB.
+    pub process_peak_mib: Option<f64>,
+    /// Wall-clock seconds of the whole run.
+    pub total_seconds: f64,
+}
+
+/// The generator's own volume distribution, from fresh phantoms.
+#[derive(Debug, Serialize)]
+pub struct ReferenceFidelity {
+    /// Fresh phantoms.
+    pub phantoms: usize,
+    /// Their seed.
+    pub seed: u64,
+    /// Their exact volumes, ml.
+    pub volumes: SummaryStats,
+    /// Exact volumes of the training phantoms, ml.
+    pub training_exact_volumes: SummaryStats,
+    /// Mesh-measured volumes of the training phantoms, ml.
+    pub training_measured_volumes: SummaryStats,
+    /// Exact volumes of the training phantoms against the fresh ones (sampling noise).
+    pub training_exact: Fidelity,
+    /// Mesh-measured volumes of the training phantoms against the fresh exact ones
+    /// (sampling noise plus discretisation).
+    pub training_measured: Fidelity,
+}
+
+/// Figures of one model type.
+#[derive(Debug, Serialize)]
+pub struct ModelBench {
+    /// Model type.
+    pub model: String,
+    /// Parameters, defaults included.
+    pub params: serde_json::Value,
+    /// Modes kept (PCA models).
+    pub n_modes: Option<usize>,
+    /// Time and memory of the fit.
+    pub fit: FitBench,
+    /// Matching and generalisation on the test phantoms, specificity of as many samples as
+    /// training meshes.
+    pub evaluation: Evaluation,
+    /// The timed cohort and its acceptance report.
+    pub cohort: CohortBench,
+    /// The cohort's volumes against the generator's.
+    pub fidelity: VolumeFidelity,
+    /// Timed specificity of many samples.
+    pub specificity: SpecificityBench,
+}
+
+/// Time and memory of a fit.
+#[derive(Debug, Serialize)]
+pub struct FitBench {
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Seconds per stage, as the model reports them.
+    pub stages: Vec<StageTiming>,
+    /// Seconds per epoch of the stages that report a loss per epoch (empty for rsmp).
+    pub epochs: Vec<EpochTiming>,
+    /// Resident memory during the fit.
+    pub memory: Option<StepMemory>,
+}
+
+/// A timed cohort: sampling, biomarkers, acceptance and the nearest training shape of
+/// every member (indexing the training shapes included).
+#[derive(Debug, Serialize)]
+pub struct CohortBench {
+    /// Members.
+    pub size: usize,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Members per second.
+    pub members_per_second: f64,
+    /// Resident memory during the sampling.
+    pub memory: Option<StepMemory>,
+    /// Acceptance (criterion `mean` for the flags) and privacy report.
+    pub report: CohortReport,
+}
+
+/// Synthetic volumes (ml) against the generator's.
+#[derive(Debug, Serialize)]
+pub struct VolumeFidelity {
+    /// The cohort's volumes, ml.
+    pub synthetic: SummaryStats,
+    /// W1 (ml) and KS against the fresh phantoms' exact volumes.
+    pub fidelity: Fidelity,
+}
+
+/// Timed specificity against the training meshes.
+#[derive(Debug, Serialize)]
+pub struct SpecificityBench {
+    /// Samples drawn.
+    pub samples: usize,
+    /// Training meshes compared with.
+    pub training_meshes: usize,
+    /// Wall-clock seconds: sampling, vertex-to-vertex search of the closest training mesh,
+    /// point-to-surface distances to it.
+    pub seconds: f64,
+    /// Resident memory during the evaluation.
+    pub memory: Option<StepMemory>,
+    /// Vertex-to-vertex distances, mm.
+    pub vertex_to_vertex: DistanceSummary,
+    /// Point-to-surface distances, mm.
+    pub point_to_surface: Option<DistanceSummary>,
+}
+
+fn row(label: &str, cells: impl Iterator<Item = String>) -> Vec<String> {
+    std::iter::once(label.to_owned()).chain(cells).collect()
+}
+
+fn header(first: &str, report: &BenchReport) -> Vec<String> {
+    row(first, report.models.iter().map(|m| m.model.clone()))
+}
+
+fn memory_cell(m: Option<StepMemory>) -> String {
+    m.map_or(MISSING.to_owned(), |m| {
+        format!("{:.0} (peak {:.0})", m.growth_mib, m.peak_mib)
+    })
+}
+
+fn fit_table(report: &BenchReport) -> String {
+    let mut stages: Vec<String> = Vec::new();
+    for m in &report.models {
+        for s in &m.fit.stages {
+            if !stages.contains(&s.stage) {
+                stages.push(s.stage.clone());
+            }
+        }
+    }
+    let mut rows: Vec<Vec<String>> = stages
+        .iter()
+        .map(|stage| {
+            row(
+                stage,
+                report.models.iter().map(|m| {
+                    m.fit
+                        .stages
+                        .iter()
+                        .find(|s| &s.stage == stage)
+                        .map_or(MISSING.to_owned(), |s| format!("{:.1}", s.seconds))
+                }),
+            )
+        })
+        .collect();
+    let models = &report.models;
+    rows.push(row(
+        "total",
+        models.iter().map(|m| format!("{:.1}", m.fit.seconds)),
+    ));
+    rows.push(row(
+        "seconds per epoch",
+        models.iter().map(|m| {
+            let e: Vec<String> = m
+                .fit
+                .epochs
+                .iter()
+                .map(|e| format!("{}: {:.3}", e.stage, e.seconds_per_epoch))
+                .collect();
+            if e.is_empty() {
+                MISSING.to_owned()
+            } else {
+                e.join(", ")
+            }
+        }),
+    ));
+    rows.push(row(
+        "memory growth during fit, MiB",
+        models.iter().map(|m| memory_cell(m.fit.memory)),
+    ));
+    table(&header("stage (s)", report), &rows)
+}
+
+fn cohort_table(report: &BenchReport) -> String {
+    let models = &report.models;
+    let rows = vec![
+        row("members", models.iter().map(|m| m.cohort.size.to_string())),
+        row(
+            "seconds",
+            models.iter().map(|m| format!("{:.2}", m.cohort.seconds)),
+        ),
+        row(
+            "members/s",
+            models
+                .iter()
+                .map(|m| format!("{:.1}", m.cohort.members_per_second)),
+        ),
+        row(
+            "memory growth, MiB",
+            models.iter().map(|m| memory_cell(m.cohort.memory)),
+        ),
+        row(
+            "near copies (privacy guard)",
+            models
+                .iter()
+                .map(|m| m.cohort.report.privacy.near_copies.to_string()),
+        ),
+    ];
+    table(&header("cohort", report), &rows)
+}
+
+fn fidelity_row(label: &str, volumes: &SummaryStats, f: &Fidelity) -> Vec<String> {
+    let v = mean_std(MeanStd {
+        mean: volumes.mean,
+        std: volumes.sd,
+    });
+    vec![
+        label.to_owned(),
+        f.n_synthetic.to_string(),
+        v,
+        format!("{:.2}", f.wasserstein_1),
+        format!("{:.3}", f.ks_statistic),
+        format!("{:.3}", f.ks_p_value),
+    ]
+}
+
+fn fidelity_table(report: &BenchReport) -> String {
+    let r = &report.fidelity_reference;
+    let header = ["sample", "n", "volume ml", "W1 ml", "KS D", "KS p"].map(String::from);
+    let generator = MeanStd {
+        mean: r.volumes.mean,
+        std: r.volumes.sd,
+    };
+    let mut rows = vec![
+        vec![
+            "generator: fresh phantoms, exact".to_owned(),
+            r.phantoms.to_string(),
+            mean_std(generator),
+            "–".to_owned(),
+            "–".to_owned(),
+            "–".to_owned(),
+        ],
+        fidelity_row(
+            "training phantoms, exact",
+            &r.training_exact_volumes,
+            &r.training_exact,
+        ),
+        fidelity_row(
+            "training meshes, measured",
+            &r.training_measured_volumes,
+            &r.training_measured,
+        ),
+    ];
+    for m in &report.models {
+        let label = format!("{} cohort, measured", m.model);
+        rows.push(fidelity_row(
+            &label,
+            &m.fidelity.synthetic,
+            &m.fidelity.fidelity,
+        ));
+    }
+    table(&header, &rows)
+}
+
+fn specificity_table(report: &BenchReport) -> String {
+    let models = &report.models;
+    let rows = vec![
+        row(
+            "samples × training meshes",
+            models.iter().map(|m| {
+                format!(
+                    "{} × {}",
+                    m.specificity.samples, m.specificity.training_meshes
+                )
+            }),
+        ),
+        row(
+            "seconds",
+            models
+                .iter()
+                .map(|m| format!("{:.1}", m.specificity.seconds)),
+        ),
+        row(
+            "memory growth, MiB",
+            models.iter().map(|m| memory_cell(m.specificity.memory)),
+        ),
+    ];
+    let columns: Vec<(String, Vec<Option<DistanceSummary>>)> = models
+        .iter()
+        .map(|m| {
+            let s = &m.specificity;
+            (
+                m.model.clone(),
+                vec![Some(s.vertex_to_vertex), s.point_to_surface],
+            )
+        })
+        .collect();
+    format!(
+        "{}\n{}",
+        table(&header("specificity", report), &rows),
+        distance_table(&DISTANCES, &DISTANCE_KINDS, &columns)
+    )
+}
+
+/// Prints the report as markdown on stdout.
+pub fn print_markdown(report: &BenchReport) {
+    println!(
+        "## Benchmark: {} phantoms, {} training / {} test meshes ({}–{} vertices), seed {}\n",
+        report.family,
+        report.train,
+        report.test,
+        report.vertex_counts[0],
+        report.vertex_counts[1],
+        report.seed
+    );
+    println!(
+        "Distances in mm, mean ± sd over the test meshes (matching, generalisation) or over as \
+         many samples as training meshes (specificity). Vertex-to-vertex rows use the closest \
+         vertex of the other shape, point-to-surface rows the closest point on its triangles.\n"
+    );
+    let evaluations: Vec<(String, &Evaluation)> = report
+        .models
+        .iter()
+        .map(|m| (m.model.clone(), &m.evaluation))
+        .collect();
+    println!("{}", evaluation_markdown(&evaluations));
+    println!(
+        "### Fit time by stage (s) and memory\n\n{}",
+        fit_table(report)
+    );
+    println!(
+        "### Cohort sampling: members with biomarkers, acceptance and nearest training shape\n\n{}",
+        cohort_table(report)
+    );
+    for m in &report.models {
+        println!(
+            "### Clinical acceptance, {} cohort of {} (%)\n\n{}",
+            m.model,
+            m.cohort.size,
+            acceptance_table(&m.cohort.report)
+        );
+    }
+    println!(
+        "### Volume fidelity against the generator ({} fresh phantoms, seed {})\n\n{}",
+        report.fidelity_reference.phantoms,
+        report.fidelity_reference.seed,
+        fidelity_table(report)
+    );
+    println!(
+        "### Specificity against the training meshes, timed\n\n{}",
+        specificity_table(report)
+    );
+    let peak = report
+        .process_peak_mib
+        .map_or(MISSING.to_owned(), |p| format!("{p:.0} MiB"));
+    println!(
+        "Process peak resident memory (VmHWM): {peak}; total {:.1} s.",
+        report.total_seconds
+    );
+}
