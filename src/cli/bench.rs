@@ -15,7 +15,7 @@ use super::study::{parse_model_type, parse_params};
 use super::{CliResult, write_json};
 use crate::eval::SummaryStats;
 use crate::eval::fidelity::Fidelity;
-use crate::eval::metrics::IndexedShapes;
+use crate::eval::privacy::CorrespondedShapes;
 use crate::geometry::pca::Sampling;
 use crate::jobs::ModelParams;
 use crate::jobs::fit::fit_model;
@@ -213,10 +213,11 @@ fn bench_model(
         exclude_near_copies: false,
         max_draws: args.cohort_size,
     };
+    let normalised = stored.training.normalised_f64();
     let started = Instant::now();
     let (cohort, cohort_memory) = memory::measure(|| -> Result<_, ModelError> {
         let index = TrainingIndex {
-            shapes: IndexedShapes::new(&aligned)?,
+            shapes: CorrespondedShapes::new(&normalised)?,
             privacy: &stored.training.privacy,
         };
         sample_cohort(model, &outcome.reference, &index, &spec)

@@ -11,7 +11,8 @@ use super::model_file::{FitInputs, ModelFile};
 use super::progress::StderrProgress;
 use super::tables::{DISTANCES, MATCHING, acceptance_table, distance_table};
 use super::{CliResult, write_json};
-use crate::eval::metrics::{DistanceSummary, IndexedShapes};
+use crate::eval::metrics::DistanceSummary;
+use crate::eval::privacy::CorrespondedShapes;
 use crate::geometry::pca::Sampling;
 use crate::jobs::ModelParams;
 use crate::jobs::fit::fit_model;
@@ -281,8 +282,9 @@ pub fn evaluate_model(args: &EvaluateArgs) -> CliResult {
     timings.push(timing("evaluation", step));
 
     let step = Instant::now();
+    let normalised = stored.training.normalised_f64();
     let index = TrainingIndex {
-        shapes: IndexedShapes::new(&aligned).map_err(|e| e.to_string())?,
+        shapes: CorrespondedShapes::new(&normalised).map_err(|e| e.to_string())?,
         privacy: &stored.training.privacy,
     };
     let spec = CohortSpec {
