@@ -16,6 +16,8 @@ pub mod geometry;
 pub mod jobs;
 /// Triangle meshes: formats, validation, measures and phantoms (pure).
 pub mod mesh;
+/// Neural networks on burn: FeaStConv, the graph VAE and the beta-VAE (pure).
+pub mod nn;
 /// Shape models (rsmp, ...) behind one interface, and virtual cohorts (pure).
 pub mod models;
 /// NIfTI label volumes to closed surface meshes: labels, components, marching cubes (pure).
