@@ -19,7 +19,9 @@ use burn::tensor::{Tensor, TensorData};
 use cohortforge::mesh::phantom::{self, Family};
 use cohortforge::nn::device::{backend_name, training_device};
 use cohortforge::nn::graph_vae::LossWeights;
-use cohortforge::nn::{FeaStConfig, Features, GraphBatch, GraphSample, GraphVaeConfig, PositionScaling};
+use cohortforge::nn::{
+    FeaStConfig, Features, GraphBatch, GraphSample, GraphVaeConfig, PositionScaling,
+};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -49,13 +51,30 @@ fn torus_grid() -> GraphSample {
     let (a, b) = GRID;
     let id = |i: u32, j: u32| (i % a) * b + (j % b);
     let edges = (0..a)
-        .flat_map(|i| (0..b).flat_map(move |j| [[id(i, j), id(i + 1, j)], [id(i, j), id(i, j + 1)], [id(i, j), id(i + 1, j + 1)]]))
+        .flat_map(|i| {
+            (0..b).flat_map(move |j| {
+                [
+                    [id(i, j), id(i + 1, j)],
+                    [id(i, j), id(i, j + 1)],
+                    [id(i, j), id(i + 1, j + 1)],
+                ]
+            })
+        })
         .collect();
-    GraphSample { positions: vec![[0.0; 3]; (a * b) as usize], normals: None, edges }
+    GraphSample {
+        positions: vec![[0.0; 3]; (a * b) as usize],
+        normals: None,
+        edges,
+    }
 }
 
 fn normal(n: usize, rng: &mut ChaCha8Rng) -> Vec<f32> {
-    (0..n).map(|_| { let v: f64 = StandardNormal.sample(rng); v as f32 }).collect()
+    (0..n)
+        .map(|_| {
+            let v: f64 = StandardNormal.sample(rng);
+            v as f32
+        })
+        .collect()
 }
 
 fn bench_layer() {
@@ -64,7 +83,9 @@ fn bench_layer() {
     let grid = torus_grid();
     let batch = GraphBatch::new(&[&grid], &PositionScaling::IDENTITY);
     let graph = batch.tensors(&device);
-    let layer = FeaStConfig::new(64, 64).with_heads(8).init(&mut rng, &device);
+    let layer = FeaStConfig::new(64, 64)
+        .with_heads(8)
+        .init(&mut rng, &device);
     let n = grid.vertex_count();
     let x = Tensor::<2>::from_data(TensorData::new(normal(n * 64, &mut rng), [n, 64]), &device);
     let ms = median_ms(|| {
@@ -105,13 +126,25 @@ fn bench_psi(dump: Option<&str>) {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let mut model = config.init(scaling, &mut rng, &device);
     let n = batch.node_count();
-    let noise = Tensor::<2>::from_data(TensorData::new(normal(n * config.d_z, &mut rng), [n, config.d_z]), &device);
-    let weights = LossWeights { kl: 1e-3, normals: 1e-2 };
+    let noise = Tensor::<2>::from_data(
+        TensorData::new(normal(n * config.d_z, &mut rng), [n, config.d_z]),
+        &device,
+    );
+    let weights = LossWeights {
+        kl: 1e-3,
+        normals: 1e-2,
+    };
     let x = batch.feature_tensor(&device);
     let fwd_bwd = median_ms(|| {
         let loss = model.loss(x.clone(), &graph, noise.clone(), 1, weights);
         let grads = loss.backward();
-        let _ = model.output.bias.val().grad(&grads).expect("gradient").into_data();
+        let _ = model
+            .output
+            .bias
+            .val()
+            .grad(&grads)
+            .expect("gradient")
+            .into_data();
     });
     let mut optimizer = AdamConfig::new().init();
     let step = median_ms(|| {
@@ -131,7 +164,10 @@ fn bench_psi(dump: Option<&str>) {
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let dump = args.iter().position(|a| a == "--dump-phantom").and_then(|i| args.get(i + 1));
+    let dump = args
+        .iter()
+        .position(|a| a == "--dump-phantom")
+        .and_then(|i| args.get(i + 1));
     bench_layer();
     bench_psi(dump.map(String::as_str));
 }

@@ -16,10 +16,10 @@ pub mod geometry;
 pub mod jobs;
 /// Triangle meshes: formats, validation, measures and phantoms (pure).
 pub mod mesh;
-/// Neural networks on burn: FeaStConv, the graph VAE and the beta-VAE (pure).
-pub mod nn;
 /// Shape models (rsmp, ...) behind one interface, and virtual cohorts (pure).
 pub mod models;
+/// Neural networks on burn: FeaStConv, the graph VAE and the beta-VAE (pure).
+pub mod nn;
 /// NIfTI label volumes to closed surface meshes: labels, components, marching cubes (pure).
 pub mod segmentation;
 /// SQLite repositories for datasets, meshes (and later jobs, models, cohorts).

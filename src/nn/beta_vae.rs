@@ -11,7 +11,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::dense::Dense;
 use super::error::{NnError, require};
-use super::init::tensor;
+use super::init::{RunningIds, number_params};
 
 /// Sizes of the beta-VAE.
 #[derive(Config, Debug, PartialEq)]
@@ -32,8 +32,16 @@ pub struct BetaVaeConfig {
 impl BetaVaeConfig {
     /// Checks that every size is usable.
     pub fn validate(&self) -> Result<(), NnError> {
-        require(self.d_in > 0 && self.d_in % 3 == 0, "d_in", "must be a positive multiple of 3")?;
-        require(self.hidden.iter().all(|&w| w > 0), "hidden", "widths must be positive")?;
+        require(
+            self.d_in > 0 && self.d_in % 3 == 0,
+            "d_in",
+            "must be a positive multiple of 3",
+        )?;
+        require(
+            self.hidden.iter().all(|&w| w > 0),
+            "hidden",
+            "widths must be positive",
+        )?;
         require(self.latent > 0, "latent", "must be positive")?;
         require(
             self.leaky_slope.is_finite() && self.leaky_slope >= 0.0,
@@ -43,24 +51,44 @@ impl BetaVaeConfig {
     }
 
     /// A beta-VAE with weights drawn from `rng`, on `device`.
-    pub fn init(&self, scaling: CoordinateScaling, rng: &mut ChaCha8Rng, device: &Device) -> BetaVae {
+    pub fn init(
+        &self,
+        scaling: CoordinateScaling,
+        rng: &mut ChaCha8Rng,
+        device: &Device,
+    ) -> BetaVae {
         let mut stack = |widths: Vec<usize>| -> Vec<Dense> {
-            widths.windows(2).map(|w| Dense::new(w[0], w[1], rng, device)).collect()
+            widths
+                .windows(2)
+                .map(|w| Dense::new(w[0], w[1], rng, device))
+                .collect()
         };
-        let encoder = stack(std::iter::once(self.d_in).chain(self.hidden.iter().copied()).collect());
-        let decoder = stack(std::iter::once(self.latent).chain(self.hidden.iter().rev().copied()).collect());
+        let encoder = stack(
+            std::iter::once(self.d_in)
+                .chain(self.hidden.iter().copied())
+                .collect(),
+        );
+        let decoder = stack(
+            std::iter::once(self.latent)
+                .chain(self.hidden.iter().rev().copied())
+                .collect(),
+        );
         let last = self.hidden.last().copied().unwrap_or(self.d_in);
         let first = self.hidden.first().copied().unwrap_or(self.latent);
-        BetaVae {
+        let mean = Dense::new(last, self.latent, rng, device);
+        let log_var = Dense::new(last, self.latent, rng, device);
+        let output = Dense::new(first, self.d_in, rng, device);
+        let mut running = RunningIds::default();
+        number_params(BetaVae {
             encoder,
-            mean: Dense::new(last, self.latent, rng, device),
-            log_var: Dense::new(last, self.latent, rng, device),
+            mean,
+            log_var,
             decoder,
-            output: Dense::new(first, self.d_in, rng, device),
-            coordinate_min: RunningState::new(tensor(scaling.min.to_vec(), [3], device)),
-            coordinate_range: RunningState::new(tensor(vec![scaling.range], [1], device)),
+            output,
+            coordinate_min: running.state(scaling.min.to_vec(), device),
+            coordinate_range: running.state(vec![scaling.range], device),
             leaky_slope: self.leaky_slope,
-        }
+        })
     }
 }
 
@@ -76,7 +104,10 @@ pub struct CoordinateScaling {
 
 impl CoordinateScaling {
     /// The identity map.
-    pub const IDENTITY: Self = Self { min: [0.0; 3], range: 1.0 };
+    pub const IDENTITY: Self = Self {
+        min: [0.0; 3],
+        range: 1.0,
+    };
 
     /// The bounding box of all training shapes (flattened `[x, y, z, …]`).
     pub fn fit(shapes: &[Vec<f32>]) -> Self {
@@ -94,7 +125,10 @@ impl CoordinateScaling {
             return Self::IDENTITY;
         }
         let range = (0..3).map(|d| hi[d] - lo[d]).fold(0.0f32, f32::max);
-        Self { min: lo, range: if range > 0.0 { range } else { 1.0 } }
+        Self {
+            min: lo,
+            range: if range > 0.0 { range } else { 1.0 },
+        }
     }
 
     /// mm to [0, 1], in place.
@@ -136,20 +170,36 @@ pub struct BetaVae {
 impl BetaVae {
     /// Latent mean and log-variance of normalised shapes `[B, 3·N_μ]`, each `[B, L]`.
     pub fn encode(&self, x: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
-        let h = self.encoder.iter().fold(x, |h, l| leaky_relu(l.forward(h), self.leaky_slope));
+        let h = self
+            .encoder
+            .iter()
+            .fold(x, |h, l| leaky_relu(l.forward(h), self.leaky_slope));
         (self.mean.forward(h.clone()), self.log_var.forward(h))
     }
 
     /// Normalised shapes `[B, 3·N_μ]` from latent codes `[B, L]`.
     pub fn decode(&self, z: Tensor<2>) -> Tensor<2> {
-        let h = self.decoder.iter().fold(z, |h, l| leaky_relu(l.forward(h), self.leaky_slope));
+        let h = self
+            .decoder
+            .iter()
+            .fold(z, |h, l| leaky_relu(l.forward(h), self.leaky_slope));
         self.output.forward(h)
     }
 
     /// The coordinate scaling stored with the weights.
     pub fn scaling(&self) -> CoordinateScaling {
-        let min: Vec<f32> = self.coordinate_min.value().into_data().iter::<f32>().collect();
-        let range: Vec<f32> = self.coordinate_range.value().into_data().iter::<f32>().collect();
+        let min: Vec<f32> = self
+            .coordinate_min
+            .value()
+            .into_data()
+            .iter::<f32>()
+            .collect();
+        let range: Vec<f32> = self
+            .coordinate_range
+            .value()
+            .into_data()
+            .iter::<f32>()
+            .collect();
         CoordinateScaling {
             min: [0, 1, 2].map(|d| min.get(d).copied().unwrap_or(0.0)),
             range: range.first().copied().unwrap_or(1.0),
@@ -164,7 +214,10 @@ impl BetaVae {
         let z = mu.clone() + log_var.clone().mul_scalar(0.5).exp() * noise;
         let reconstruction = (self.decode(z) - x).powi_scalar(2).sum().mul_scalar(0.5);
         // KL = ½ Σ (μ² + σ² − 1 − log σ²).
-        let kl = (mu.powi_scalar(2) + log_var.clone().exp() - log_var).sub_scalar(1.0).sum().mul_scalar(0.5);
+        let kl = (mu.powi_scalar(2) + log_var.clone().exp() - log_var)
+            .sub_scalar(1.0)
+            .sum()
+            .mul_scalar(0.5);
         (reconstruction + kl.mul_scalar(beta)).div_scalar(b.max(1) as f64)
     }
 }
@@ -173,6 +226,7 @@ impl BetaVae {
 mod tests {
     use super::*;
     use crate::nn::device::{STREAM_INIT, inference_device, rng};
+    use crate::nn::init::tensor;
 
     #[test]
     fn scaling_maps_the_box_to_the_unit_range_and_back() {
@@ -191,21 +245,49 @@ mod tests {
     fn shapes_and_loss_terms() {
         let device = inference_device();
         let config = BetaVaeConfig::new(6).with_hidden(vec![5, 4]).with_latent(2);
-        let model = config.init(CoordinateScaling::IDENTITY, &mut rng(0, STREAM_INIT), &device);
-        let x = tensor(vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.0, 0.1, 0.0, 0.1, 0.0, 0.1], [2, 6], &device);
+        let model = config.init(
+            CoordinateScaling::IDENTITY,
+            &mut rng(0, STREAM_INIT),
+            &device,
+        );
+        let x = tensor(
+            vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.0, 0.1, 0.0, 0.1, 0.0, 0.1],
+            [2, 6],
+            &device,
+        );
         let (mu, log_var) = model.encode(x.clone());
         assert_eq!(mu.dims(), [2, 2]);
         assert_eq!(model.decode(mu.clone()).dims(), [2, 6]);
         // With zero noise the loss is the reconstruction of μ plus β times the KL.
         let zero = Tensor::zeros([2, 2], &device);
-        let at = |beta| f64::from(model.loss(x.clone(), zero.clone(), beta).into_scalar::<f32>());
-        let rec: f64 = (model.decode(mu.clone()) - x.clone()).powi_scalar(2).sum().into_scalar::<f32>().into();
-        let mu: Vec<f32> = mu.into_data().to_vec().unwrap();
-        let lv: Vec<f32> = log_var.into_data().to_vec().unwrap();
-        let kl: f64 = mu.iter().zip(&lv).map(|(&m, &l)| 0.5 * f64::from(m * m + l.exp() - 1.0 - l)).sum();
+        let at = |beta| {
+            f64::from(
+                model
+                    .loss(x.clone(), zero.clone(), beta)
+                    .into_scalar::<f32>(),
+            )
+        };
+        let rec: f64 = (model.decode(mu.clone()) - x.clone())
+            .powi_scalar(2)
+            .sum()
+            .into_scalar::<f32>()
+            .into();
+        let mu: Vec<f32> = mu.into_data().iter::<f32>().collect();
+        let lv: Vec<f32> = log_var.into_data().iter::<f32>().collect();
+        let kl: f64 = mu
+            .iter()
+            .zip(&lv)
+            .map(|(&m, &l)| 0.5 * f64::from(m * m + l.exp() - 1.0 - l))
+            .sum();
         assert!((at(0.0) - rec / 4.0).abs() < 1e-5);
         assert!((at(2.0) - (rec / 2.0 + 2.0 * kl) / 2.0).abs() < 1e-5);
-        assert_eq!(config.clone().with_latent(0).validate().unwrap_err().code(), "nn.invalid_config");
-        assert_eq!(BetaVaeConfig::new(7).validate().unwrap_err().code(), "nn.invalid_config");
+        assert_eq!(
+            config.clone().with_latent(0).validate().unwrap_err().code(),
+            "nn.invalid_config"
+        );
+        assert_eq!(
+            BetaVaeConfig::new(7).validate().unwrap_err().code(),
+            "nn.invalid_config"
+        );
     }
 }

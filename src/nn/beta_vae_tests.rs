@@ -19,11 +19,21 @@ fn toy_shapes() -> Vec<Vec<f32>> {
 }
 
 fn config() -> BetaVaeConfig {
-    BetaVaeConfig::new(60).with_hidden(vec![32, 16]).with_latent(2)
+    BetaVaeConfig::new(60)
+        .with_hidden(vec![32, 16])
+        .with_latent(2)
 }
 
 fn quick(epochs: usize, seed: u64) -> BetaVaeTraining {
-    BetaVaeTraining { epochs, batch_size: 4, lr: 3e-3, lr_step: 40, beta: 1e-3, seed, ..BetaVaeTraining::default() }
+    BetaVaeTraining {
+        epochs,
+        batch_size: 4,
+        lr: 3e-3,
+        lr_step: 40,
+        beta: 1e-3,
+        seed,
+        ..BetaVaeTraining::default()
+    }
 }
 
 #[test]
@@ -33,7 +43,13 @@ fn training_lowers_the_loss_and_reconstructs() {
     let (first, last) = (trained.losses[0], *trained.losses.last().unwrap());
     assert!(last < 0.2 * first, "loss {first} -> {last}");
     let rec = trained.reconstruct(&shapes[3..4]).unwrap();
-    let rms = (rec[0].iter().zip(&shapes[3]).map(|(a, b)| (a - b).powi(2)).sum::<f32>() / 60.0).sqrt();
+    let rms = (rec[0]
+        .iter()
+        .zip(&shapes[3])
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f32>()
+        / 60.0)
+        .sqrt();
     assert!(rms < 3.0, "reconstruction rms {rms} mm");
     let z = trained.encode_mean(&shapes).unwrap();
     assert_eq!((z.len(), z[0].len()), (12, 2));
@@ -62,18 +78,39 @@ fn weights_round_trip_through_bytes() {
     let loaded = TrainedBetaVae::from_bytes(&config(), &bytes).unwrap();
     assert_eq!(loaded.to_bytes().unwrap(), bytes);
     assert_eq!(loaded.sample(2, 1), trained.sample(2, 1));
-    assert_eq!(loaded.encode_mean(&shapes[..2]).unwrap(), trained.encode_mean(&shapes[..2]).unwrap());
+    assert_eq!(
+        loaded.encode_mean(&shapes[..2]).unwrap(),
+        trained.encode_mean(&shapes[..2]).unwrap()
+    );
     let other = config().with_latent(3);
-    assert_eq!(TrainedBetaVae::from_bytes(&other, &bytes).unwrap_err().code(), "nn.weights");
+    assert_eq!(
+        TrainedBetaVae::from_bytes(&other, &bytes)
+            .unwrap_err()
+            .code(),
+        "nn.weights"
+    );
 }
 
 #[test]
 fn bad_input_is_rejected() {
     let mut shapes = toy_shapes();
-    assert_eq!(train_beta_vae(&[], &config(), &quick(1, 0), &mut Unmonitored).unwrap_err().code(), "nn.empty_dataset");
+    assert_eq!(
+        train_beta_vae(&[], &config(), &quick(1, 0), &mut Unmonitored)
+            .unwrap_err()
+            .code(),
+        "nn.empty_dataset"
+    );
     shapes[2].pop();
     let err = train_beta_vae(&shapes, &config(), &quick(1, 0), &mut Unmonitored).unwrap_err();
     assert_eq!(err.code(), "nn.dimension_mismatch");
-    let bad = BetaVaeTraining { beta: -1.0, ..quick(1, 0) };
-    assert_eq!(train_beta_vae(&toy_shapes(), &config(), &bad, &mut Unmonitored).unwrap_err().code(), "nn.invalid_config");
+    let bad = BetaVaeTraining {
+        beta: -1.0,
+        ..quick(1, 0)
+    };
+    assert_eq!(
+        train_beta_vae(&toy_shapes(), &config(), &bad, &mut Unmonitored)
+            .unwrap_err()
+            .code(),
+        "nn.invalid_config"
+    );
 }

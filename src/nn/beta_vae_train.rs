@@ -7,7 +7,9 @@ use burn::store::ModuleRecord;
 use burn::tensor::{Bytes, Tensor, TensorData};
 
 use super::beta_vae::{BetaVae, BetaVaeConfig, CoordinateScaling};
-use super::device::{STREAM_INIT, STREAM_NOISE, STREAM_SAMPLE, inference_device, rng, training_device};
+use super::device::{
+    STREAM_INIT, STREAM_NOISE, STREAM_SAMPLE, inference_device, rng, training_device,
+};
 use super::error::{NnError, check_finite, require};
 use super::init::standard_normal;
 use super::train::{Monitor, adam, check_schedule, run_epochs, step_decay};
@@ -33,15 +35,31 @@ pub struct BetaVaeTraining {
 
 impl Default for BetaVaeTraining {
     fn default() -> Self {
-        Self { epochs: 300, batch_size: 4, lr: 1e-3, lr_step: 100, lr_gamma: 0.5, beta: 1e-2, seed: 0 }
+        Self {
+            epochs: 300,
+            batch_size: 4,
+            lr: 1e-3,
+            lr_step: 100,
+            lr_gamma: 0.5,
+            beta: 1e-2,
+            seed: 0,
+        }
     }
 }
 
 impl BetaVaeTraining {
     fn validate(&self) -> Result<(), NnError> {
         check_schedule(self.epochs, self.batch_size, self.lr)?;
-        require(self.beta.is_finite() && self.beta >= 0.0, "beta", "must be a non-negative number")?;
-        require(self.lr_gamma.is_finite() && self.lr_gamma > 0.0, "lr_gamma", "must be a positive number")
+        require(
+            self.beta.is_finite() && self.beta >= 0.0,
+            "beta",
+            "must be a non-negative number",
+        )?;
+        require(
+            self.lr_gamma.is_finite() && self.lr_gamma > 0.0,
+            "lr_gamma",
+            "must be a positive number",
+        )
     }
 }
 
@@ -59,7 +77,11 @@ pub struct TrainedBetaVae {
 fn check_shapes(shapes: &[Vec<f32>], width: usize) -> Result<(), NnError> {
     for s in shapes {
         if s.len() != width {
-            return Err(NnError::DimensionMismatch { what: "shape", expected: width, found: s.len() });
+            return Err(NnError::DimensionMismatch {
+                what: "shape",
+                expected: width,
+                found: s.len(),
+            });
         }
         check_finite(s, "shape")?;
     }
@@ -67,7 +89,12 @@ fn check_shapes(shapes: &[Vec<f32>], width: usize) -> Result<(), NnError> {
 }
 
 /// Rows `[B, width]` from equally long vectors, each first passed through `map`.
-fn rows(vectors: &[Vec<f32>], width: usize, map: impl Fn(&mut [f32]), device: &burn::tensor::Device) -> Tensor<2> {
+fn rows(
+    vectors: &[Vec<f32>],
+    width: usize,
+    map: impl Fn(&mut [f32]),
+    device: &burn::tensor::Device,
+) -> Tensor<2> {
     let mut flat = Vec::with_capacity(vectors.len() * width);
     for v in vectors {
         let start = flat.len();
@@ -98,18 +125,31 @@ pub fn train_beta_vae(
     let mut optimizer = adam();
     let mut noise_rng = rng(training.seed, STREAM_NOISE);
     let schedule = (training.epochs, training.batch_size, training.seed);
-    let (model, losses) = run_epochs(model, shapes.len(), schedule, monitor, |model, batch, epoch| {
-        let members: Vec<Vec<f32>> = batch.iter().map(|&i| shapes[i].clone()).collect();
-        let x = rows(&members, config.d_in, |s| scaling.normalise(s), &device);
-        let noise = standard_normal(batch.len() * config.latent, &mut noise_rng);
-        let noise = Tensor::from_data(TensorData::new(noise, [batch.len(), config.latent]), &device);
-        let loss = model.loss(x, noise, training.beta);
-        let value = f64::from(loss.clone().into_scalar::<f32>());
-        let grads = GradientsParams::from_grads(loss.backward(), &model);
-        let lr = step_decay(training.lr, epoch, training.lr_step, training.lr_gamma);
-        (optimizer.step(lr, model, grads), value * batch.len() as f64)
-    })?;
-    Ok(TrainedBetaVae { config: config.clone(), losses, model: model.valid() })
+    let (model, losses) = run_epochs(
+        model,
+        shapes.len(),
+        schedule,
+        monitor,
+        |model, batch, epoch| {
+            let members: Vec<Vec<f32>> = batch.iter().map(|&i| shapes[i].clone()).collect();
+            let x = rows(&members, config.d_in, |s| scaling.normalise(s), &device);
+            let noise = standard_normal(batch.len() * config.latent, &mut noise_rng);
+            let noise = Tensor::from_data(
+                TensorData::new(noise, [batch.len(), config.latent]),
+                &device,
+            );
+            let loss = model.loss(x, noise, training.beta);
+            let value = f64::from(loss.clone().into_scalar::<f32>());
+            let grads = GradientsParams::from_grads(loss.backward(), &model);
+            let lr = step_decay(training.lr, epoch, training.lr_step, training.lr_gamma);
+            (optimizer.step(lr, model, grads), value * batch.len() as f64)
+        },
+    )?;
+    Ok(TrainedBetaVae {
+        config: config.clone(),
+        losses,
+        model: model.valid(),
+    })
 }
 
 impl TrainedBetaVae {
@@ -117,7 +157,12 @@ impl TrainedBetaVae {
     pub fn encode_mean(&self, shapes: &[Vec<f32>]) -> Result<Vec<Vec<f32>>, NnError> {
         check_shapes(shapes, self.config.d_in)?;
         let scaling = self.model.scaling();
-        let x = rows(shapes, self.config.d_in, |s| scaling.normalise(s), &inference_device());
+        let x = rows(
+            shapes,
+            self.config.d_in,
+            |s| scaling.normalise(s),
+            &inference_device(),
+        );
         Ok(split(self.model.encode(x).0, self.config.latent))
     }
 
@@ -140,25 +185,42 @@ impl TrainedBetaVae {
     pub fn sample(&self, count: usize, seed: u64) -> Vec<Vec<f32>> {
         let mut r = rng(seed, STREAM_SAMPLE);
         let latent = self.config.latent;
-        let z: Vec<Vec<f32>> = (0..count).map(|_| standard_normal(latent, &mut r)).collect();
+        let z: Vec<Vec<f32>> = (0..count)
+            .map(|_| standard_normal(latent, &mut r))
+            .collect();
         // Latents have the right width and are finite by construction.
         self.decode(&z).unwrap_or_default()
     }
 
     /// The weights as a burn record (burnpack bytes), for storing as a blob.
     pub fn to_bytes(&self) -> Result<Vec<u8>, NnError> {
-        let bytes = self.model.clone().into_record().into_bytes().map_err(|e| NnError::Weights(e.to_string()))?;
+        let bytes = self
+            .model
+            .clone()
+            .into_record()
+            .into_bytes()
+            .map_err(|e| NnError::Weights(e.to_string()))?;
         Ok(bytes.to_vec())
     }
 
     /// Rebuilds a trained beta-VAE from `config` and bytes written by [`Self::to_bytes`].
     pub fn from_bytes(config: &BetaVaeConfig, bytes: &[u8]) -> Result<Self, NnError> {
         config.validate()?;
-        let skeleton = config.init(CoordinateScaling::IDENTITY, &mut rng(0, STREAM_INIT), &inference_device());
+        let skeleton = config.init(
+            CoordinateScaling::IDENTITY,
+            &mut rng(0, STREAM_INIT),
+            &inference_device(),
+        );
         let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes.to_vec()))
             .map_err(|e| NnError::Weights(e.to_string()))?;
-        let model = skeleton.try_load_record(record).map_err(|e| NnError::Weights(e.to_string()))?;
-        Ok(Self { config: config.clone(), losses: Vec::new(), model: model.valid() })
+        let model = skeleton
+            .try_load_record(record)
+            .map_err(|e| NnError::Weights(e.to_string()))?;
+        Ok(Self {
+            config: config.clone(),
+            losses: Vec::new(),
+            model: model.valid(),
+        })
     }
 }
 

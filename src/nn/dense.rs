@@ -41,10 +41,11 @@ mod tests {
     fn forward_is_an_affine_map() {
         let device = inference_device();
         let mut layer = Dense::new(2, 3, &mut rng(0, STREAM_INIT), &device);
-        layer.weight = Param::from_tensor(tensor(vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0], [2, 3], &device));
+        layer.weight =
+            Param::from_tensor(tensor(vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0], [2, 3], &device));
         layer.bias = Param::from_tensor(tensor(vec![0.5, 0.0, -1.0], [3], &device));
         let y = layer.forward(tensor(vec![1.0, -1.0, 0.0, 2.0], [2, 2], &device));
-        let y: Vec<f32> = y.into_data().to_vec().unwrap();
+        let y: Vec<f32> = y.into_data().iter::<f32>().collect();
         assert_eq!(y, vec![-2.5, -3.0, -4.0, 8.5, 10.0, 11.0]);
     }
 }

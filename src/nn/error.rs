@@ -15,7 +15,9 @@ pub enum NnError {
         sample: usize,
     },
     /// An edge refers to a vertex that does not exist.
-    #[error("sample {sample}: edge {edge} refers to vertex {vertex}, but there are {vertex_count} vertices")]
+    #[error(
+        "sample {sample}: edge {edge} refers to vertex {vertex}, but there are {vertex_count} vertices"
+    )]
     EdgeOutOfRange {
         /// Index of the sample.
         sample: usize,

@@ -77,13 +77,23 @@ impl FeaStConv {
         let e = graph.edge_count;
         let q = self.steering(x.clone(), graph);
         let summed = if d_in < d_out {
-            let outer = q.reshape([e, heads, 1]) * x.select(0, graph.sources.clone()).reshape([e, 1, d_in]);
+            let outer =
+                q.reshape([e, heads, 1]) * x.select(0, graph.sources.clone()).reshape([e, 1, d_in]);
             let agg = scatter_sum(outer.reshape([e, heads * d_in]), graph);
             agg.matmul(self.weight.val().reshape([heads * d_in, d_out]))
         } else {
-            let w = self.weight.val().swap_dims(0, 1).reshape([d_in, heads * d_out]);
-            let xw = x.matmul(w).select(0, graph.sources.clone()).reshape([e, heads, d_out]);
-            let msg = (xw * q.reshape([e, heads, 1])).sum_dim(1).reshape([e, d_out]);
+            let w = self
+                .weight
+                .val()
+                .swap_dims(0, 1)
+                .reshape([d_in, heads * d_out]);
+            let xw = x
+                .matmul(w)
+                .select(0, graph.sources.clone())
+                .reshape([e, heads, d_out]);
+            let msg = (xw * q.reshape([e, heads, 1]))
+                .sum_dim(1)
+                .reshape([e, d_out]);
             scatter_sum(msg, graph)
         };
         summed * graph.inv_degree.clone() + self.bias.val().unsqueeze_dim(0)
@@ -92,7 +102,8 @@ impl FeaStConv {
     /// Head weights per edge `q` (`[E, H]`): softmax over heads of `u_mᵀ(x_j − x_i) + c_m`.
     fn steering(&self, x: Tensor<2>, graph: &GraphTensors) -> Tensor<2> {
         let xu = x.matmul(self.steer.val());
-        let logits = xu.clone().select(0, graph.sources.clone()) - xu.select(0, graph.targets.clone())
+        let logits = xu.clone().select(0, graph.sources.clone())
+            - xu.select(0, graph.targets.clone())
             + self.steer_offset.val().unsqueeze_dim(0);
         softmax(logits, 1)
     }
@@ -101,7 +112,10 @@ impl FeaStConv {
 /// Sums per-edge rows `[E, C]` into their target nodes, `[N, C]`.
 fn scatter_sum(messages: Tensor<2>, graph: &GraphTensors) -> Tensor<2> {
     let [_, c] = messages.dims();
-    let zeros = Tensor::zeros([graph.node_count, c], (&messages.device(), messages.dtype()));
+    let zeros = Tensor::zeros(
+        [graph.node_count, c],
+        (&messages.device(), messages.dtype()),
+    );
     zeros.select_assign(0, graph.targets.clone(), messages, IndexingUpdateOp::Add)
 }
 

@@ -42,17 +42,38 @@ fn values<const D: usize>(t: Tensor<D>) -> Vec<f64> {
 /// The layer with every parameter converted to double precision on `device`.
 fn to_f64(layer: &FeaStConv, device: &Device) -> FeaStConv {
     FeaStConv {
-        weight: Param::from_tensor(f64_tensor(values(layer.weight.val()), layer.weight.shape().dims(), device)),
-        steer: Param::from_tensor(f64_tensor(values(layer.steer.val()), layer.steer.shape().dims(), device)),
-        steer_offset: Param::from_tensor(f64_tensor(values(layer.steer_offset.val()), layer.steer_offset.shape().dims(), device)),
-        bias: Param::from_tensor(f64_tensor(values(layer.bias.val()), layer.bias.shape().dims(), device)),
+        weight: Param::from_tensor(f64_tensor(
+            values(layer.weight.val()),
+            layer.weight.shape().dims(),
+            device,
+        )),
+        steer: Param::from_tensor(f64_tensor(
+            values(layer.steer.val()),
+            layer.steer.shape().dims(),
+            device,
+        )),
+        steer_offset: Param::from_tensor(f64_tensor(
+            values(layer.steer_offset.val()),
+            layer.steer_offset.shape().dims(),
+            device,
+        )),
+        bias: Param::from_tensor(f64_tensor(
+            values(layer.bias.val()),
+            layer.bias.shape().dims(),
+            device,
+        )),
     }
 }
 
-/// Edge index and degrees of `batch` with the degrees in double precision.
+/// Edge index and degrees of `batch` with `1/|N(i)|` computed in double precision.
 fn f64_graph(batch: &GraphBatch, device: &Device) -> GraphTensors {
     let mut g = batch.tensors(device);
-    g.inv_degree = g.inv_degree.cast(DType::F64);
+    let mut count = vec![0.0f64; batch.node_count()];
+    for &t in &batch.targets {
+        count[t as usize] += 1.0;
+    }
+    let n = count.len();
+    g.inv_degree = f64_tensor(count.iter().map(|c| 1.0 / c).collect(), [n, 1], device);
     g
 }
 
@@ -69,28 +90,41 @@ fn naive(layer: &FeaStConv, x: &[f64], batch: &GraphBatch) -> Vec<f64> {
     for (&j, &i) in batch.sources.iter().zip(&batch.targets) {
         let (i, j) = (i as usize, j as usize);
         let logits: Vec<f64> = (0..h)
-            .map(|m| c[m] + (0..d_in).map(|k| u[k * h + m] * (x[j * d_in + k] - x[i * d_in + k])).sum::<f64>())
+            .map(|m| {
+                c[m] + (0..d_in)
+                    .map(|k| u[k * h + m] * (x[j * d_in + k] - x[i * d_in + k]))
+                    .sum::<f64>()
+            })
             .collect();
         let top = logits.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
         let z: f64 = logits.iter().map(|l| (l - top).exp()).sum();
         for m in 0..h {
             let q = (logits[m] - top).exp() / z;
             for o in 0..d_out {
-                let wx: f64 = (0..d_in).map(|k| x[j * d_in + k] * w[(m * d_in + k) * d_out + o]).sum();
+                let wx: f64 = (0..d_in)
+                    .map(|k| x[j * d_in + k] * w[(m * d_in + k) * d_out + o])
+                    .sum();
                 sum[i * d_out + o] += q * wx;
             }
         }
         count[i] += 1;
     }
-    (0..n * d_out).map(|t| sum[t] / count[t / d_out] as f64 + b[t % d_out]).collect()
+    (0..n * d_out)
+        .map(|t| sum[t] / count[t / d_out] as f64 + b[t % d_out])
+        .collect()
 }
 
 fn setup(d_in: usize, d_out: usize, seed: u64) -> (FeaStConv, GraphBatch, Vec<f64>) {
     let mut r = rng(seed, STREAM_INIT);
-    let layer = FeaStConfig::new(d_in, d_out).with_heads(3).init(&mut r, &inference_device());
+    let layer = FeaStConfig::new(d_in, d_out)
+        .with_heads(3)
+        .init(&mut r, &inference_device());
     let g = random_graph(7, &mut r);
     let batch = GraphBatch::new(&[&g], &PositionScaling::IDENTITY);
-    let x: Vec<f64> = standard_normal(7 * d_in, &mut r).into_iter().map(f64::from).collect();
+    let x: Vec<f64> = standard_normal(7 * d_in, &mut r)
+        .into_iter()
+        .map(f64::from)
+        .collect();
     (layer, batch, x)
 }
 
@@ -101,7 +135,10 @@ fn output_equals_the_per_edge_loop_on_both_paths() {
         let device = inference_device();
         let (layer, batch, x) = setup(d_in, d_out, 11);
         let layer = to_f64(&layer, &device);
-        let y = layer.forward(f64_tensor(x.clone(), [7, d_in], &device), &f64_graph(&batch, &device));
+        let y = layer.forward(
+            f64_tensor(x.clone(), [7, d_in], &device),
+            &f64_graph(&batch, &device),
+        );
         let expected = naive(&layer, &x, &batch);
         let got = values(y);
         assert_eq!(got.len(), expected.len());
@@ -116,7 +153,10 @@ fn single_precision_matches_the_loop() {
     let device = inference_device();
     let (layer, batch, x) = setup(4, 6, 5);
     let xs: Vec<f32> = x.iter().map(|&v| v as f32).collect();
-    let y = layer.forward(Tensor::from_data(TensorData::new(xs, [7, 4]), &device), &batch.tensors(&device));
+    let y = layer.forward(
+        Tensor::from_data(TensorData::new(xs, [7, 4]), &device),
+        &batch.tensors(&device),
+    );
     for (g, e) in values(y).iter().zip(naive(&layer, &x, &batch)) {
         assert!((g - e).abs() < 1e-5, "{g} vs {e}");
     }
@@ -126,7 +166,10 @@ fn single_precision_matches_the_loop() {
 fn weighted_output(layer: &FeaStConv, x: &[f64], batch: &GraphBatch, r: &[f64]) -> f64 {
     let device = inference_device();
     let d_in = layer.dims().1;
-    let y = layer.forward(f64_tensor(x.to_vec(), [x.len() / d_in, d_in], &device), &f64_graph(batch, &device));
+    let y = layer.forward(
+        f64_tensor(x.to_vec(), [x.len() / d_in, d_in], &device),
+        &f64_graph(batch, &device),
+    );
     values(y).iter().zip(r).map(|(a, b)| a * b).sum()
 }
 
@@ -140,10 +183,34 @@ fn nudged(layer: &FeaStConv, which: usize, k: usize, delta: f64) -> FeaStConv {
         t
     };
     match which {
-        0 => out.weight = Param::from_tensor(f64_tensor(bump(values(layer.weight.val())), layer.weight.shape().dims(), &device)),
-        1 => out.steer = Param::from_tensor(f64_tensor(bump(values(layer.steer.val())), layer.steer.shape().dims(), &device)),
-        2 => out.steer_offset = Param::from_tensor(f64_tensor(bump(values(layer.steer_offset.val())), layer.steer_offset.shape().dims(), &device)),
-        _ => out.bias = Param::from_tensor(f64_tensor(bump(values(layer.bias.val())), layer.bias.shape().dims(), &device)),
+        0 => {
+            out.weight = Param::from_tensor(f64_tensor(
+                bump(values(layer.weight.val())),
+                layer.weight.shape().dims(),
+                &device,
+            ))
+        }
+        1 => {
+            out.steer = Param::from_tensor(f64_tensor(
+                bump(values(layer.steer.val())),
+                layer.steer.shape().dims(),
+                &device,
+            ))
+        }
+        2 => {
+            out.steer_offset = Param::from_tensor(f64_tensor(
+                bump(values(layer.steer_offset.val())),
+                layer.steer_offset.shape().dims(),
+                &device,
+            ))
+        }
+        _ => {
+            out.bias = Param::from_tensor(f64_tensor(
+                bump(values(layer.bias.val())),
+                layer.bias.shape().dims(),
+                &device,
+            ))
+        }
     }
     out
 }
@@ -152,7 +219,10 @@ fn assert_close(analytic: &[f64], numeric: &[f64], what: &str) {
     assert_eq!(analytic.len(), numeric.len(), "{what}");
     for (k, (a, n)) in analytic.iter().zip(numeric).enumerate() {
         let tol = 1e-6 * (1.0 + a.abs().max(n.abs()));
-        assert!((a - n).abs() < tol, "{what}[{k}]: autodiff {a} vs finite difference {n}");
+        assert!(
+            (a - n).abs() < tol,
+            "{what}[{k}]: autodiff {a} vs finite difference {n}"
+        );
     }
 }
 
@@ -163,7 +233,10 @@ fn gradients_match_central_finite_differences() {
         let (layer, batch, x) = setup(d_in, d_out, 23);
         let plain = inference_device();
         let layer = to_f64(&layer, &plain);
-        let r: Vec<f64> = standard_normal(7 * d_out, &mut rng(2, STREAM_INIT)).into_iter().map(f64::from).collect();
+        let r: Vec<f64> = standard_normal(7 * d_out, &mut rng(2, STREAM_INIT))
+            .into_iter()
+            .map(f64::from)
+            .collect();
 
         // Autodiff gradients.
         let ad = training_device();
@@ -186,7 +259,9 @@ fn gradients_match_central_finite_differences() {
                 let (mut up, mut down) = (x.clone(), x.clone());
                 up[k] += STEP;
                 down[k] -= STEP;
-                (weighted_output(&layer, &up, &batch, &r) - weighted_output(&layer, &down, &batch, &r)) / (2.0 * STEP)
+                (weighted_output(&layer, &up, &batch, &r)
+                    - weighted_output(&layer, &down, &batch, &r))
+                    / (2.0 * STEP)
             })
             .collect();
         assert_close(&gx, &fx, "d/dx");
@@ -217,7 +292,11 @@ fn permuting_vertices_permutes_the_output() {
     let permuted = GraphSample {
         positions: perm.iter().map(|&old| g.positions[old]).collect(),
         normals: None,
-        edges: g.edges.iter().map(|e| e.map(|v| inverse[v as usize])).collect(),
+        edges: g
+            .edges
+            .iter()
+            .map(|e| e.map(|v| inverse[v as usize]))
+            .collect(),
     };
     let run = |s: &GraphSample| {
         let b = GraphBatch::new(&[s], &PositionScaling::IDENTITY);

@@ -142,7 +142,11 @@ impl PositionScaling {
             }
         }
         let ms: f64 = points()
-            .map(|p| (0..3).map(|d| (f64::from(p[d]) - mean[d]).powi(2)).sum::<f64>())
+            .map(|p| {
+                (0..3)
+                    .map(|d| (f64::from(p[d]) - mean[d]).powi(2))
+                    .sum::<f64>()
+            })
             .sum::<f64>()
             / n as f64;
         let scale = if ms > 0.0 { ms.sqrt() as f32 } else { 1.0 };
@@ -297,10 +301,27 @@ mod tests {
         assert_eq!(batch.node_ranges, vec![0..3, 3..5]);
         // path 0-1-2: 3 self-loops + 4 directed; path 3-4: 2 + 2.
         assert_eq!(batch.edge_count(), 11);
-        let pairs: Vec<(u32, u32)> = batch.sources.iter().copied().zip(batch.targets.iter().copied()).collect();
+        let pairs: Vec<(u32, u32)> = batch
+            .sources
+            .iter()
+            .copied()
+            .zip(batch.targets.iter().copied())
+            .collect();
         assert_eq!(
             pairs,
-            vec![(0, 0), (1, 0), (1, 1), (0, 1), (2, 1), (2, 2), (1, 2), (3, 3), (4, 3), (4, 4), (3, 4)]
+            vec![
+                (0, 0),
+                (1, 0),
+                (1, 1),
+                (0, 1),
+                (2, 1),
+                (2, 2),
+                (1, 2),
+                (3, 3),
+                (4, 3),
+                (4, 4),
+                (3, 4)
+            ]
         );
         assert_eq!(&batch.features[9..12], &[0.0, 0.0, 0.0]); // first node of graph b
     }
@@ -312,7 +333,7 @@ mod tests {
         let batch = GraphBatch::new(&[&g], &PositionScaling::IDENTITY);
         assert_eq!(batch.edge_count(), 7);
         let t = batch.tensors(&crate::nn::device::inference_device());
-        let inv: Vec<f32> = t.inv_degree.into_data().to_vec().unwrap();
+        let inv: Vec<f32> = t.inv_degree.into_data().iter::<f32>().collect();
         assert_eq!(inv, vec![0.5, 1.0 / 3.0, 0.5]);
     }
 
@@ -351,14 +372,21 @@ mod tests {
         let mut g = path(3);
         g.edges.push([0, 3]);
         assert_eq!(g.validate(4).unwrap_err().code(), "nn.edge_out_of_range");
-        let empty = GraphSample { positions: vec![], normals: None, edges: vec![] };
+        let empty = GraphSample {
+            positions: vec![],
+            normals: None,
+            edges: vec![],
+        };
         assert_eq!(empty.validate(0).unwrap_err().code(), "nn.empty_sample");
         let mut nan = path(2);
         nan.positions[1][2] = f32::NAN;
         assert_eq!(nan.validate(0).unwrap_err().code(), "nn.non_finite");
         let mut short = path(2);
         short.normals = Some(vec![[0.0, 0.0, 1.0]]);
-        assert_eq!(short.validate(0).unwrap_err().code(), "nn.dimension_mismatch");
+        assert_eq!(
+            short.validate(0).unwrap_err().code(),
+            "nn.dimension_mismatch"
+        );
         assert!(path(2).validate(0).is_ok());
     }
 }

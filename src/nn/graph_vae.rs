@@ -8,7 +8,7 @@
 
 use burn::config::Config;
 use burn::module::{Module, RunningState};
-use burn::nn::{BatchNorm, BatchNormConfig};
+use burn::nn::BatchNorm;
 use burn::tensor::activation::leaky_relu;
 use burn::tensor::{Device, Tensor};
 use rand_chacha::ChaCha8Rng;
@@ -16,7 +16,7 @@ use rand_chacha::ChaCha8Rng;
 use super::error::{NnError, require};
 use super::feast::{FeaStConfig, FeaStConv};
 use super::graph::{GraphTensors, PositionScaling};
-use super::init::tensor;
+use super::init::{RunningIds, number_params};
 
 /// log σ is clamped to ±this before exponentiating, so σ stays finite.
 const LOG_SIGMA_LIMIT: f64 = 10.0;
@@ -50,9 +50,21 @@ impl Default for GraphVaeConfig {
 impl GraphVaeConfig {
     /// Checks that every size is usable.
     pub fn validate(&self) -> Result<(), NnError> {
-        require(self.d_x == 3 || self.d_x == 6, "d_x", "must be 3 (positions) or 6 (positions and normals)")?;
-        require(!self.hidden.is_empty(), "hidden", "needs at least one layer")?;
-        require(self.hidden.iter().all(|&w| w > 0), "hidden", "widths must be positive")?;
+        require(
+            self.d_x == 3 || self.d_x == 6,
+            "d_x",
+            "must be 3 (positions) or 6 (positions and normals)",
+        )?;
+        require(
+            !self.hidden.is_empty(),
+            "hidden",
+            "needs at least one layer",
+        )?;
+        require(
+            self.hidden.iter().all(|&w| w > 0),
+            "hidden",
+            "widths must be positive",
+        )?;
         require(self.d_z > 0, "d_z", "must be positive")?;
         require(self.heads > 0, "heads", "must be positive")?;
         require(
@@ -63,33 +75,52 @@ impl GraphVaeConfig {
     }
 
     /// Ψ with weights drawn from `rng`, on `device`.
-    pub fn init(&self, scaling: PositionScaling, rng: &mut ChaCha8Rng, device: &Device) -> GraphVae {
-        let mut blocks = |widths: &[usize]| -> Vec<ConvBlock> {
+    pub fn init(
+        &self,
+        scaling: PositionScaling,
+        rng: &mut ChaCha8Rng,
+        device: &Device,
+    ) -> GraphVae {
+        let mut running = RunningIds::default();
+        let mut blocks = |widths: &[usize], rng: &mut ChaCha8Rng| -> Vec<ConvBlock> {
             widths
                 .windows(2)
                 .map(|w| ConvBlock {
-                    conv: FeaStConfig::new(w[0], w[1]).with_heads(self.heads).init(rng, device),
-                    norm: BatchNormConfig::new(w[1]).init(device),
+                    conv: FeaStConfig::new(w[0], w[1])
+                        .with_heads(self.heads)
+                        .init(rng, device),
+                    norm: running.batch_norm(w[1], device),
                 })
                 .collect()
         };
         let last = *self.hidden.last().unwrap_or(&self.d_x);
-        let enc_widths: Vec<usize> = std::iter::once(self.d_x).chain(self.hidden.iter().copied()).collect();
-        let dec_widths: Vec<usize> = std::iter::once(self.d_z).chain(self.hidden.iter().rev().copied()).collect();
-        let encoder = blocks(&enc_widths);
-        let decoder = blocks(&dec_widths);
-        let head = |rng: &mut ChaCha8Rng, d_in, d_out| FeaStConfig::new(d_in, d_out).with_heads(self.heads).init(rng, device);
+        let enc_widths: Vec<usize> = std::iter::once(self.d_x)
+            .chain(self.hidden.iter().copied())
+            .collect();
+        let dec_widths: Vec<usize> = std::iter::once(self.d_z)
+            .chain(self.hidden.iter().rev().copied())
+            .collect();
+        let encoder = blocks(&enc_widths, rng);
+        let decoder = blocks(&dec_widths, rng);
+        let head = |rng: &mut ChaCha8Rng, d_in, d_out| {
+            FeaStConfig::new(d_in, d_out)
+                .with_heads(self.heads)
+                .init(rng, device)
+        };
         let first_hidden = self.hidden.first().copied().unwrap_or(self.d_z);
-        GraphVae {
+        let mean = head(rng, last, self.d_z);
+        let log_sigma = head(rng, last, self.d_z);
+        let output = head(rng, first_hidden, self.d_x);
+        number_params(GraphVae {
             encoder,
-            mean: head(rng, last, self.d_z),
-            log_sigma: head(rng, last, self.d_z),
+            mean,
+            log_sigma,
             decoder,
-            output: head(rng, first_hidden, self.d_x),
-            position_shift: RunningState::new(tensor(scaling.shift.to_vec(), [3], device)),
-            position_scale: RunningState::new(tensor(vec![scaling.scale], [1], device)),
+            output,
+            position_shift: running.state(scaling.shift.to_vec(), device),
+            position_scale: running.state(vec![scaling.scale], device),
             leaky_slope: self.leaky_slope,
-        }
+        })
     }
 }
 
@@ -141,20 +172,39 @@ pub struct LossWeights {
 impl GraphVae {
     /// The encoder's mean and log σ, each `[N, d_z]`.
     pub fn encode(&self, x: Tensor<2>, graph: &GraphTensors) -> (Tensor<2>, Tensor<2>) {
-        let h = self.encoder.iter().fold(x, |h, b| b.forward(h, graph, self.leaky_slope));
-        (self.mean.forward(h.clone(), graph), self.log_sigma.forward(h, graph))
+        let h = self
+            .encoder
+            .iter()
+            .fold(x, |h, b| b.forward(h, graph, self.leaky_slope));
+        (
+            self.mean.forward(h.clone(), graph),
+            self.log_sigma.forward(h, graph),
+        )
     }
 
     /// The decoder: embeddings `[N, d_z]` to features `[N, d_x]`.
     pub fn decode(&self, z: Tensor<2>, graph: &GraphTensors) -> Tensor<2> {
-        let h = self.decoder.iter().fold(z, |h, b| b.forward(h, graph, self.leaky_slope));
+        let h = self
+            .decoder
+            .iter()
+            .fold(z, |h, b| b.forward(h, graph, self.leaky_slope));
         self.output.forward(h, graph)
     }
 
     /// The scaling from mm to network units stored with the weights.
     pub fn scaling(&self) -> PositionScaling {
-        let shift: Vec<f32> = self.position_shift.value().into_data().iter::<f32>().collect();
-        let scale: Vec<f32> = self.position_scale.value().into_data().iter::<f32>().collect();
+        let shift: Vec<f32> = self
+            .position_shift
+            .value()
+            .into_data()
+            .iter::<f32>()
+            .collect();
+        let scale: Vec<f32> = self
+            .position_scale
+            .value()
+            .into_data()
+            .iter::<f32>()
+            .collect();
         PositionScaling {
             shift: [0, 1, 2].map(|d| shift.get(d).copied().unwrap_or(0.0)),
             scale: scale.first().copied().unwrap_or(1.0),

@@ -45,8 +45,16 @@ impl Default for GraphVaeTraining {
 impl GraphVaeTraining {
     fn validate(&self) -> Result<(), NnError> {
         check_schedule(self.epochs, self.batch_size, self.lr)?;
-        require(self.w_kl.is_finite() && self.w_kl >= 0.0, "w_kl", "must be a non-negative number")?;
-        require(self.w_norm.is_finite() && self.w_norm >= 0.0, "w_norm", "must be a non-negative number")
+        require(
+            self.w_kl.is_finite() && self.w_kl >= 0.0,
+            "w_kl",
+            "must be a non-negative number",
+        )?;
+        require(
+            self.w_norm.is_finite() && self.w_norm >= 0.0,
+            "w_norm",
+            "must be a non-negative number",
+        )
     }
 }
 
@@ -66,7 +74,11 @@ fn check_samples(samples: &[GraphSample], config: &GraphVaeConfig) -> Result<(),
         s.validate(i)?;
         let width = s.features().width();
         if width != config.d_x {
-            return Err(NnError::DimensionMismatch { what: "node features", expected: config.d_x, found: width });
+            return Err(NnError::DimensionMismatch {
+                what: "node features",
+                expected: config.d_x,
+                found: width,
+            });
         }
     }
     Ok(())
@@ -89,23 +101,45 @@ pub fn train_graph_vae(
     let device = training_device();
     let scaling = PositionScaling::fit(samples);
     let model = config.init(scaling, &mut rng(training.seed, STREAM_INIT), &device);
-    let weights = LossWeights { kl: training.w_kl, normals: training.w_norm };
+    let weights = LossWeights {
+        kl: training.w_kl,
+        normals: training.w_norm,
+    };
     let mut optimizer = adam();
     let mut noise_rng = rng(training.seed, STREAM_NOISE);
     let schedule = (training.epochs, training.batch_size, training.seed);
-    let (model, losses) = run_epochs(model, samples.len(), schedule, monitor, |model, batch, _| {
-        let members: Vec<&GraphSample> = batch.iter().map(|&i| &samples[i]).collect();
-        let graph = GraphBatch::new(&members, &scaling);
-        let tensors = graph.tensors(&device);
-        let noise = standard_normal(graph.node_count() * config.d_z, &mut noise_rng);
-        let noise = Tensor::from_data(TensorData::new(noise, [graph.node_count(), config.d_z]), &device);
-        let loss = model.loss(graph.feature_tensor(&device), &tensors, noise, members.len(), weights);
-        let value = f64::from(loss.clone().into_scalar::<f32>());
-        let grads = GradientsParams::from_grads(loss.backward(), &model);
-        let model = optimizer.step(training.lr, model, grads);
-        (model, value * members.len() as f64)
-    })?;
-    Ok(TrainedGraphVae { config: config.clone(), losses, model: model.valid() })
+    let (model, losses) = run_epochs(
+        model,
+        samples.len(),
+        schedule,
+        monitor,
+        |model, batch, _| {
+            let members: Vec<&GraphSample> = batch.iter().map(|&i| &samples[i]).collect();
+            let graph = GraphBatch::new(&members, &scaling);
+            let tensors = graph.tensors(&device);
+            let noise = standard_normal(graph.node_count() * config.d_z, &mut noise_rng);
+            let noise = Tensor::from_data(
+                TensorData::new(noise, [graph.node_count(), config.d_z]),
+                &device,
+            );
+            let loss = model.loss(
+                graph.feature_tensor(&device),
+                &tensors,
+                noise,
+                members.len(),
+                weights,
+            );
+            let value = f64::from(loss.clone().into_scalar::<f32>());
+            let grads = GradientsParams::from_grads(loss.backward(), &model);
+            let model = optimizer.step(training.lr, model, grads);
+            (model, value * members.len() as f64)
+        },
+    )?;
+    Ok(TrainedGraphVae {
+        config: config.clone(),
+        losses,
+        model: model.valid(),
+    })
 }
 
 impl TrainedGraphVae {
@@ -125,7 +159,9 @@ impl TrainedGraphVae {
     /// back in mm.
     pub fn reconstruct(&self, sample: &GraphSample) -> Result<Vec<f32>, NnError> {
         check_samples(std::slice::from_ref(sample), &self.config)?;
-        let (x_hat, batch) = self.run(std::slice::from_ref(sample), |m, x, g| m.decode(m.encode(x, g).0, g));
+        let (x_hat, batch) = self.run(std::slice::from_ref(sample), |m, x, g| {
+            m.decode(m.encode(x, g).0, g)
+        });
         let scaling = self.model.scaling();
         let mut out = split_rows(x_hat, &batch, self.config.d_x).remove(0);
         for row in out.chunks_mut(self.config.d_x) {
@@ -145,13 +181,22 @@ impl TrainedGraphVae {
         let device: Device = inference_device();
         let members: Vec<&GraphSample> = samples.iter().collect();
         let batch = GraphBatch::new(&members, &self.model.scaling());
-        let out = f(&self.model, batch.feature_tensor(&device), &batch.tensors(&device));
+        let out = f(
+            &self.model,
+            batch.feature_tensor(&device),
+            &batch.tensors(&device),
+        );
         (out, batch)
     }
 
     /// The weights as a burn record (burnpack bytes), for storing as a blob.
     pub fn to_bytes(&self) -> Result<Vec<u8>, NnError> {
-        let bytes = self.model.clone().into_record().into_bytes().map_err(|e| NnError::Weights(e.to_string()))?;
+        let bytes = self
+            .model
+            .clone()
+            .into_record()
+            .into_bytes()
+            .map_err(|e| NnError::Weights(e.to_string()))?;
         Ok(bytes.to_vec())
     }
 
@@ -162,13 +207,23 @@ impl TrainedGraphVae {
         let skeleton = config.init(PositionScaling::IDENTITY, &mut rng(0, STREAM_INIT), &device);
         let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes.to_vec()))
             .map_err(|e| NnError::Weights(e.to_string()))?;
-        let model = skeleton.try_load_record(record).map_err(|e| NnError::Weights(e.to_string()))?;
-        Ok(Self { config: config.clone(), losses: Vec::new(), model: model.valid() })
+        let model = skeleton
+            .try_load_record(record)
+            .map_err(|e| NnError::Weights(e.to_string()))?;
+        Ok(Self {
+            config: config.clone(),
+            losses: Vec::new(),
+            model: model.valid(),
+        })
     }
 }
 
 /// Splits node rows `[N, width]` into one row-major block per graph.
 fn split_rows(t: Tensor<2>, batch: &GraphBatch, width: usize) -> Vec<Vec<f32>> {
     let values: Vec<f32> = t.into_data().iter::<f32>().collect();
-    batch.node_ranges.iter().map(|r| values[r.start * width..r.end * width].to_vec()).collect()
+    batch
+        .node_ranges
+        .iter()
+        .map(|r| values[r.start * width..r.end * width].to_vec())
+        .collect()
 }

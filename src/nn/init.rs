@@ -1,13 +1,18 @@
 //! Seeded parameter initialisation (PyTorch's defaults, drawn from our own random streams).
 
-use burn::module::Param;
+use burn::module::{Module, ModuleMapper, Param, ParamId, RunningState};
+use burn::nn::{BatchNorm, BatchNormConfig};
 use burn::tensor::{Device, Tensor, TensorData};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 /// A tensor of shape `shape` from row-major `values` on `device` (default float type).
-pub(crate) fn tensor<const D: usize>(values: Vec<f32>, shape: [usize; D], device: &Device) -> Tensor<D> {
+pub(crate) fn tensor<const D: usize>(
+    values: Vec<f32>,
+    shape: [usize; D],
+    device: &Device,
+) -> Tensor<D> {
     Tensor::from_data(TensorData::new(values, shape), device)
 }
 
@@ -49,6 +54,55 @@ pub(crate) fn standard_normal(n: usize, rng: &mut ChaCha8Rng) -> Vec<f32> {
         .collect()
 }
 
+/// Ids of running states (buffers) start here, far above the trainable parameters' ids.
+const RUNNING_ID_BASE: u64 = 1 << 62;
+
+/// Gives every trainable parameter of `model` a fixed id (1, 2, … in visiting order), so that
+/// equal weights give equal record bytes and a reloaded model writes the bytes it was read
+/// from. Running states keep the ids [`RunningIds`] gave them.
+pub(crate) fn number_params<M: Module>(model: M) -> M {
+    model.map(&mut Numbering { next: 1 })
+}
+
+struct Numbering {
+    next: u64,
+}
+
+impl ModuleMapper for Numbering {
+    fn map_float<const D: usize>(&mut self, mut param: Param<Tensor<D>>) -> Param<Tensor<D>> {
+        param.id = ParamId::from(self.next);
+        self.next += 1;
+        param
+    }
+}
+
+/// Fixed ids for running states (batch-norm statistics, stored scalings), in creation order.
+#[derive(Debug)]
+pub(crate) struct RunningIds(u64);
+
+impl Default for RunningIds {
+    fn default() -> Self {
+        Self(RUNNING_ID_BASE)
+    }
+}
+
+impl RunningIds {
+    /// A running state holding `values` (shape `[len]`) under the next fixed id.
+    pub(crate) fn state(&mut self, values: Vec<f32>, device: &Device) -> RunningState<Tensor<1>> {
+        self.0 += 1;
+        let n = values.len();
+        RunningState::with_id(ParamId::from(self.0), tensor(values, [n], device))
+    }
+
+    /// Batch norm over `width` features whose running statistics have fixed ids.
+    pub(crate) fn batch_norm(&mut self, width: usize, device: &Device) -> BatchNorm {
+        let mut norm = BatchNormConfig::new(width).init(device);
+        norm.running_mean = self.state(vec![0.0; width], device);
+        norm.running_var = self.state(vec![1.0; width], device);
+        norm
+    }
+}
+
 /// PyTorch's default bound for a layer with `fan_in` inputs: `1/√fan_in`
 /// (Kaiming uniform with a = √5).
 pub(crate) fn fan_in_bound(fan_in: usize) -> f64 {
@@ -65,8 +119,8 @@ mod tests {
         let device = inference_device();
         let a = uniform([4, 5], 0.5, &mut rng(1, STREAM_INIT), &device).val();
         let b = uniform([4, 5], 0.5, &mut rng(1, STREAM_INIT), &device).val();
-        let a: Vec<f32> = a.into_data().to_vec().unwrap();
-        let b: Vec<f32> = b.into_data().to_vec().unwrap();
+        let a: Vec<f32> = a.into_data().iter::<f32>().collect();
+        let b: Vec<f32> = b.into_data().iter::<f32>().collect();
         assert_eq!(a, b);
         assert_eq!(a.len(), 20);
         assert!(a.iter().all(|v| v.abs() <= 0.5));

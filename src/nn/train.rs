@@ -43,10 +43,17 @@ impl Monitor for Unmonitored {
 }
 
 /// Sample indices of one epoch in a seeded random order, cut into mini-batches.
-pub(crate) fn epoch_batches(count: usize, batch_size: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<usize>> {
+pub(crate) fn epoch_batches(
+    count: usize,
+    batch_size: usize,
+    rng: &mut ChaCha8Rng,
+) -> Vec<Vec<usize>> {
     let mut order: Vec<usize> = (0..count).collect();
     order.shuffle(rng);
-    order.chunks(batch_size.max(1)).map(<[usize]>::to_vec).collect()
+    order
+        .chunks(batch_size.max(1))
+        .map(<[usize]>::to_vec)
+        .collect()
 }
 
 /// Adam with PyTorch's defaults (β = 0.9, 0.999; ε = 1e-8; no weight decay).
@@ -67,7 +74,11 @@ pub fn step_decay(lr: f64, epoch: usize, step: usize, gamma: f64) -> f64 {
 pub(crate) fn check_schedule(epochs: usize, batch_size: usize, lr: f64) -> Result<(), NnError> {
     require(epochs > 0, "epochs", "must be at least 1")?;
     require(batch_size > 0, "batch_size", "must be at least 1")?;
-    require(lr.is_finite() && lr > 0.0, "lr", "must be a positive number")
+    require(
+        lr.is_finite() && lr > 0.0,
+        "lr",
+        "must be a positive number",
+    )
 }
 
 /// The epoch loop both networks share: seeded shuffling into mini-batches, one `step` per
@@ -145,8 +156,14 @@ mod tests {
         assert_eq!(go_on(Flow::Finish), Ok(false));
         assert_eq!(go_on(Flow::Cancel), Err(NnError::Cancelled));
         assert!(check_schedule(1, 1, 1e-3).is_ok());
-        assert_eq!(check_schedule(0, 1, 1e-3).unwrap_err().code(), "nn.invalid_config");
-        assert_eq!(check_schedule(1, 1, f64::NAN).unwrap_err().code(), "nn.invalid_config");
+        assert_eq!(
+            check_schedule(0, 1, 1e-3).unwrap_err().code(),
+            "nn.invalid_config"
+        );
+        assert_eq!(
+            check_schedule(1, 1, f64::NAN).unwrap_err().code(),
+            "nn.invalid_config"
+        );
     }
 }
 
@@ -165,7 +182,11 @@ mod loop_tests {
     impl Monitor for Scripted {
         fn batch(&mut self) -> Flow {
             self.batches += 1;
-            if self.batches >= self.after { self.answer } else { Flow::Continue }
+            if self.batches >= self.after {
+                self.answer
+            } else {
+                Flow::Continue
+            }
         }
         fn epoch(&mut self, _epoch: usize, _epochs: usize, mean_loss: f64) -> Flow {
             self.epochs.push(mean_loss);
@@ -174,9 +195,16 @@ mod loop_tests {
     }
 
     fn counter(answer: Flow, after: usize) -> (Result<(usize, Vec<f64>), NnError>, Scripted) {
-        let mut m = Scripted { batches: 0, after, answer, epochs: vec![] };
+        let mut m = Scripted {
+            batches: 0,
+            after,
+            answer,
+            epochs: vec![],
+        };
         // 5 samples in batches of 2: each step adds one and reports loss = batch length.
-        let out = run_epochs(0usize, 5, (3, 2, 9), &mut m, |n, batch, _| (n + 1, batch.len() as f64));
+        let out = run_epochs(0usize, 5, (3, 2, 9), &mut m, |n, batch, _| {
+            (n + 1, batch.len() as f64)
+        });
         (out, m)
     }
 
@@ -201,7 +229,9 @@ mod loop_tests {
     #[test]
     fn a_non_finite_loss_is_reported_as_divergence() {
         let mut m = Unmonitored;
-        let out = run_epochs(0usize, 4, (2, 2, 1), &mut m, |n, _, epoch| (n, if epoch == 1 { f64::NAN } else { 1.0 }));
+        let out = run_epochs(0usize, 4, (2, 2, 1), &mut m, |n, _, epoch| {
+            (n, if epoch == 1 { f64::NAN } else { 1.0 })
+        });
         assert_eq!(out.unwrap_err(), NnError::Diverged { epoch: 1 });
     }
 }
