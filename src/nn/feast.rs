@@ -5,12 +5,14 @@
 //! y_i = b + (1/|N(i)|) Σ_{j∈N(i)} Σ_m q_m(x_i, x_j) W_m x_j,
 //! q_m = softmax over m of (u_mᵀ(x_j − x_i) + c_m).
 //!
-//! Because `u` is linear, `x·U` is computed once per node and gathered per edge. The weighted
-//! sum over heads is formed on whichever side of `W` is narrower: with `d_in ≥ d_out`, `x·W`
-//! per node is gathered per edge and mixed by `q` (`[E, H, d_out]`); with `d_in < d_out`, the
-//! per-edge outer product `q ⊗ x_j` (`[E, H, d_in]`) is averaged per node first and then
-//! multiplied by the stacked `W` once. Messages are scatter-summed to their targets with
+//! Because `u` and `W` are linear, `x·U` (`[N, H]`) and `x·W` (`[N, H, d_out]`) are computed
+//! once per node. Edges are grouped by source node in rows of `D` slots ([`SlotLayout`]), so
+//! the messages of a row are one small matrix product `q_row [D, H] · (x_j W) [H, d_out]` (a
+//! batched matmul over rows) and no per-edge `[E, H, d_out]` tensor is formed in the forward
+//! or the backward pass. Messages are scatter-summed into their targets with
 //! `select_assign(.., Add)`, whose gradient is defined for repeated indices.
+//!
+//! [`SlotLayout`]: super::slots::SlotLayout
 
 use burn::config::Config;
 use burn::module::{Module, Param};
@@ -18,8 +20,8 @@ use burn::tensor::activation::softmax;
 use burn::tensor::{Device, IndexingUpdateOp, Tensor};
 use rand_chacha::ChaCha8Rng;
 
-use super::graph::GraphTensors;
 use super::init::{fan_in_bound, normal, uniform};
+use super::slots::GraphTensors;
 
 /// Standard deviation of the initial steering offsets `c` and biases `b` (as in PyG).
 const OFFSET_INIT_STD: f64 = 0.1;
@@ -74,49 +76,45 @@ impl FeaStConv {
     /// returns `[N, d_out]`.
     pub fn forward(&self, x: Tensor<2>, graph: &GraphTensors) -> Tensor<2> {
         let (heads, d_in, d_out) = self.dims();
-        let e = graph.edge_count;
-        let q = self.steering(x.clone(), graph);
-        let summed = if d_in < d_out {
-            let outer =
-                q.reshape([e, heads, 1]) * x.select(0, graph.sources.clone()).reshape([e, 1, d_in]);
-            let agg = scatter_sum(outer.reshape([e, heads * d_in]), graph);
-            agg.matmul(self.weight.val().reshape([heads * d_in, d_out]))
-        } else {
-            let w = self
-                .weight
-                .val()
-                .swap_dims(0, 1)
-                .reshape([d_in, heads * d_out]);
-            let xw = x
-                .matmul(w)
-                .select(0, graph.sources.clone())
-                .reshape([e, heads, d_out]);
-            let msg = (xw * q.reshape([e, heads, 1]))
-                .sum_dim(1)
-                .reshape([e, d_out]);
-            scatter_sum(msg, graph)
+        let (n, r, d) = (graph.node_count, graph.row_count, graph.slots);
+        let w = self
+            .weight
+            .val()
+            .swap_dims(0, 1)
+            .reshape([d_in, heads * d_out]);
+        let xw = x.clone().matmul(w);
+        let xu = x.matmul(self.steer.val());
+        let (xw, xu_rows) = match &graph.row_sources {
+            Some(rows) => (
+                xw.select(0, rows.clone()),
+                xu.clone().select(0, rows.clone()),
+            ),
+            None => (xw, xu.clone()),
         };
+        let q = self.steering(xu_rows, xu, graph);
+        let messages = q.matmul(xw.reshape([r, heads, d_out]));
+        let summed = Tensor::zeros([n, d_out], (&messages.device(), messages.dtype()))
+            .select_assign(
+                0,
+                graph.slot_targets.clone(),
+                messages.reshape([r * d, d_out]),
+                IndexingUpdateOp::Add,
+            );
         summed * graph.inv_degree.clone() + self.bias.val().unsqueeze_dim(0)
     }
 
-    /// Head weights per edge `q` (`[E, H]`): softmax over heads of `u_mᵀ(x_j − x_i) + c_m`.
-    fn steering(&self, x: Tensor<2>, graph: &GraphTensors) -> Tensor<2> {
-        let xu = x.matmul(self.steer.val());
-        let logits = xu.clone().select(0, graph.sources.clone())
-            - xu.select(0, graph.targets.clone())
-            + self.steer_offset.val().unsqueeze_dim(0);
-        softmax(logits, 1)
+    /// Head weights of every slot `q` (`[R, D, H]`, zero on padding): softmax over heads of
+    /// `u_mᵀ(x_j − x_i) + c_m`, from `x·U` of each row's source (`[R, H]`) and of every node.
+    fn steering(&self, xu_rows: Tensor<2>, xu: Tensor<2>, graph: &GraphTensors) -> Tensor<3> {
+        let (r, d) = (graph.row_count, graph.slots);
+        let heads = self.dims().0;
+        let at_target = xu
+            .select(0, graph.slot_targets.clone())
+            .reshape([r, d, heads]);
+        let logits = xu_rows.unsqueeze_dim::<3>(1) - at_target
+            + self.steer_offset.val().unsqueeze_dims::<3>(&[0, 1]);
+        softmax(logits, 2) * graph.slot_mask.clone()
     }
-}
-
-/// Sums per-edge rows `[E, C]` into their target nodes, `[N, C]`.
-fn scatter_sum(messages: Tensor<2>, graph: &GraphTensors) -> Tensor<2> {
-    let [_, c] = messages.dims();
-    let zeros = Tensor::zeros(
-        [graph.node_count, c],
-        (&messages.device(), messages.dtype()),
-    );
-    zeros.select_assign(0, graph.targets.clone(), messages, IndexingUpdateOp::Add)
 }
 
 #[cfg(test)]

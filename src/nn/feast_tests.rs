@@ -65,7 +65,7 @@ fn to_f64(layer: &FeaStConv, device: &Device) -> FeaStConv {
     }
 }
 
-/// Edge index and degrees of `batch` with `1/|N(i)|` computed in double precision.
+/// The batch's slots and degrees in double precision (`1/|N(i)|` computed in f64).
 fn f64_graph(batch: &GraphBatch, device: &Device) -> GraphTensors {
     let mut g = batch.tensors(device);
     let mut count = vec![0.0f64; batch.node_count()];
@@ -74,6 +74,7 @@ fn f64_graph(batch: &GraphBatch, device: &Device) -> GraphTensors {
     }
     let n = count.len();
     g.inv_degree = f64_tensor(count.iter().map(|c| 1.0 / c).collect(), [n, 1], device);
+    g.slot_mask = g.slot_mask.cast(DType::F64);
     g
 }
 
@@ -114,14 +115,37 @@ fn naive(layer: &FeaStConv, x: &[f64], batch: &GraphBatch) -> Vec<f64> {
         .collect()
 }
 
-fn setup(d_in: usize, d_out: usize, seed: u64) -> (FeaStConv, GraphBatch, Vec<f64>) {
+/// A star: vertex 0 joined to the 8 others, and a path 1-2-3; its hub needs several rows of
+/// message slots.
+fn star() -> GraphSample {
+    let mut edges: Vec<[u32; 2]> = (1..9).map(|j| [0, j]).collect();
+    edges.extend([[1, 2], [2, 3]]);
+    let p = standard_normal(27, &mut rng(4, 4));
+    GraphSample {
+        positions: p.chunks(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        normals: None,
+        edges,
+    }
+}
+
+/// A layer with 3 heads, a random 7-vertex graph (or the 9-vertex star) and input features.
+fn setup(
+    d_in: usize,
+    d_out: usize,
+    seed: u64,
+    use_star: bool,
+) -> (FeaStConv, GraphBatch, Vec<f64>) {
     let mut r = rng(seed, STREAM_INIT);
     let layer = FeaStConfig::new(d_in, d_out)
         .with_heads(3)
         .init(&mut r, &inference_device());
-    let g = random_graph(7, &mut r);
+    let g = if use_star {
+        star()
+    } else {
+        random_graph(7, &mut r)
+    };
     let batch = GraphBatch::new(&[&g], &PositionScaling::IDENTITY);
-    let x: Vec<f64> = standard_normal(7 * d_in, &mut r)
+    let x: Vec<f64> = standard_normal(batch.node_count() * d_in, &mut r)
         .into_iter()
         .map(f64::from)
         .collect();
@@ -129,19 +153,25 @@ fn setup(d_in: usize, d_out: usize, seed: u64) -> (FeaStConv, GraphBatch, Vec<f6
 }
 
 #[test]
-fn output_equals_the_per_edge_loop_on_both_paths() {
-    // d_in < d_out aggregates q ⊗ x_j first; d_in ≥ d_out gathers x·W.
-    for (d_in, d_out) in [(3, 5), (5, 3), (4, 4)] {
+fn output_equals_the_per_edge_loop() {
+    for (d_in, d_out, use_star) in [(3, 5, false), (5, 3, false), (4, 4, true)] {
         let device = inference_device();
-        let (layer, batch, x) = setup(d_in, d_out, 11);
+        let (layer, batch, x) = setup(d_in, d_out, 11, use_star);
+        let n = batch.node_count();
+        if use_star {
+            assert!(
+                batch.tensors(&device).row_sources.is_some(),
+                "the hub has several rows"
+            );
+        }
         let layer = to_f64(&layer, &device);
         let y = layer.forward(
-            f64_tensor(x.clone(), [7, d_in], &device),
+            f64_tensor(x.clone(), [n, d_in], &device),
             &f64_graph(&batch, &device),
         );
         let expected = naive(&layer, &x, &batch);
         let got = values(y);
-        assert_eq!(got.len(), expected.len());
+        assert_eq!(got.len(), n * d_out);
         for (g, e) in got.iter().zip(&expected) {
             assert!((g - e).abs() < 1e-12, "{d_in}->{d_out}: {g} vs {e}");
         }
@@ -151,7 +181,7 @@ fn output_equals_the_per_edge_loop_on_both_paths() {
 #[test]
 fn single_precision_matches_the_loop() {
     let device = inference_device();
-    let (layer, batch, x) = setup(4, 6, 5);
+    let (layer, batch, x) = setup(4, 6, 5, false);
     let xs: Vec<f32> = x.iter().map(|&v| v as f32).collect();
     let y = layer.forward(
         Tensor::from_data(TensorData::new(xs, [7, 4]), &device),
@@ -229,11 +259,12 @@ fn assert_close(analytic: &[f64], numeric: &[f64], what: &str) {
 #[test]
 fn gradients_match_central_finite_differences() {
     const STEP: f64 = 1e-5;
-    for (d_in, d_out) in [(3, 5), (5, 3)] {
-        let (layer, batch, x) = setup(d_in, d_out, 23);
+    for (d_in, d_out, use_star) in [(3, 5, false), (5, 3, true)] {
+        let (layer, batch, x) = setup(d_in, d_out, 23, use_star);
+        let n = batch.node_count();
         let plain = inference_device();
         let layer = to_f64(&layer, &plain);
-        let r: Vec<f64> = standard_normal(7 * d_out, &mut rng(2, STREAM_INIT))
+        let r: Vec<f64> = standard_normal(n * d_out, &mut rng(2, STREAM_INIT))
             .into_iter()
             .map(f64::from)
             .collect();
@@ -241,9 +272,9 @@ fn gradients_match_central_finite_differences() {
         // Autodiff gradients.
         let ad = training_device();
         let ad_layer = to_f64(&layer, &ad);
-        let xt = f64_tensor(x.clone(), [7, d_in], &ad).require_grad();
+        let xt = f64_tensor(x.clone(), [n, d_in], &ad).require_grad();
         let y = ad_layer.forward(xt.clone(), &f64_graph(&batch, &ad));
-        let loss = (y * f64_tensor(r.clone(), [7, d_out], &ad)).sum();
+        let loss = (y * f64_tensor(r.clone(), [n, d_out], &ad)).sum();
         let grads = loss.backward();
         let gx = values(xt.grad(&grads).unwrap());
         let gparams = [
@@ -281,7 +312,7 @@ fn gradients_match_central_finite_differences() {
 #[test]
 fn permuting_vertices_permutes_the_output() {
     let device = inference_device();
-    let (layer, _, _) = setup(3, 4, 31);
+    let (layer, _, _) = setup(3, 4, 31, false);
     let g = random_graph(9, &mut rng(31, 9));
     // New vertex k is old vertex perm[k].
     let perm = [4usize, 0, 8, 2, 7, 1, 6, 3, 5];

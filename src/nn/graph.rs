@@ -6,9 +6,10 @@
 
 use std::ops::Range;
 
-use burn::tensor::{Device, Int, Tensor, TensorData};
+use burn::tensor::{Device, Tensor, TensorData};
 
 use super::error::{NnError, check_finite};
+use super::slots::{GraphTensors, SlotLayout};
 use crate::mesh::Mesh;
 use crate::mesh::measures::vertex_normals;
 use crate::mesh::topology::edges;
@@ -221,30 +222,20 @@ impl GraphBatch {
     }
 
     /// The node features as a tensor `[N, d_x]`.
-    pub(crate) fn feature_tensor(&self, device: &Device) -> Tensor<2> {
+    pub fn feature_tensor(&self, device: &Device) -> Tensor<2> {
         let data = TensorData::new(self.features.clone(), [self.node_count(), self.d_x]);
         Tensor::from_data(data, device)
     }
 
-    /// The edge index and degrees on `device`.
+    /// The edges grouped by source (see [`SlotLayout`]) and the degrees, on `device`.
     pub fn tensors(&self, device: &Device) -> GraphTensors {
         let n = self.node_count();
-        let index = |v: &[u32]| {
-            let data: Vec<i64> = v.iter().map(|&i| i64::from(i)).collect();
-            Tensor::<1, Int>::from_data(TensorData::new(data, [v.len()]), device)
-        };
-        let mut degree = vec![0.0f32; n];
+        let mut degree = vec![0usize; n];
         for &t in &self.targets {
-            degree[t as usize] += 1.0;
+            degree[t as usize] += 1;
         }
-        let inv: Vec<f32> = degree.iter().map(|&d| 1.0 / d.max(1.0)).collect();
-        GraphTensors {
-            sources: index(&self.sources),
-            targets: index(&self.targets),
-            inv_degree: Tensor::from_data(TensorData::new(inv, [n, 1]), device),
-            node_count: n,
-            edge_count: self.edge_count(),
-        }
+        let layout = SlotLayout::new(n, &self.sources, &self.targets);
+        GraphTensors::new(&layout, &degree, device)
     }
 }
 
@@ -263,21 +254,6 @@ fn neighbour_lists(sample: &GraphSample) -> Vec<Vec<u32>> {
         list.dedup();
     }
     lists
-}
-
-/// A batch's edge index on a device, ready for graph convolutions.
-#[derive(Debug, Clone)]
-pub struct GraphTensors {
-    /// Source node `j` of each edge, `[E]`.
-    pub sources: Tensor<1, Int>,
-    /// Target node `i` of each edge, `[E]`.
-    pub targets: Tensor<1, Int>,
-    /// `1 / |N(i)|` (self-loop included), `[N, 1]`.
-    pub inv_degree: Tensor<2>,
-    /// `N`.
-    pub node_count: usize,
-    /// `E`.
-    pub edge_count: usize,
 }
 
 #[cfg(test)]

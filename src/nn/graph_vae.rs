@@ -15,8 +15,9 @@ use rand_chacha::ChaCha8Rng;
 
 use super::error::{NnError, require};
 use super::feast::{FeaStConfig, FeaStConv};
-use super::graph::{GraphTensors, PositionScaling};
+use super::graph::PositionScaling;
 use super::init::{RunningIds, number_params};
+use super::slots::GraphTensors;
 
 /// log σ is clamped to ±this before exponentiating, so σ stays finite.
 const LOG_SIGMA_LIMIT: f64 = 10.0;
@@ -227,11 +228,12 @@ impl GraphVae {
         let sigma = log_sigma.clone().exp();
         let z = mu.clone() + sigma.clone() * noise;
         let x_hat = self.decode(z, graph);
-        let [n, d_x] = x_hat.dims();
+        let [_, d_x] = x_hat.dims();
+        let entries = mu.dims().iter().product::<usize>();
         let reconstruction = (x_hat.clone() - x).powi_scalar(2).sum().mul_scalar(0.5);
         // KL(N(μ, σ²) ‖ N(0, 1)) = −log σ + (μ² + σ²)/2 − 1/2 per dimension.
         let kl = (mu.powi_scalar(2) + sigma.powi_scalar(2)).mul_scalar(0.5) - log_sigma;
-        let kl = kl.sum().sub_scalar(0.5 * (n * kl_width(&self.mean)) as f64);
+        let kl = kl.sum().sub_scalar(0.5 * entries as f64);
         let mut total = reconstruction + kl.mul_scalar(weights.kl);
         if d_x == 6 {
             let normals = x_hat.narrow(1, 3, 3);
@@ -241,11 +243,6 @@ impl GraphVae {
         }
         total.div_scalar(graphs.max(1) as f64)
     }
-}
-
-/// Width of a head's output.
-fn kl_width(head: &FeaStConv) -> usize {
-    head.dims().2
 }
 
 #[cfg(test)]

@@ -221,3 +221,10 @@ fn bad_input_and_cancellation_are_errors() {
     .unwrap_err();
     assert_eq!(err, NnError::Cancelled);
 }
+
+#[test]
+fn trained_networks_can_be_shared_between_threads() {
+    fn shareable<T: Send + Sync>() {}
+    shareable::<TrainedGraphVae>();
+    shareable::<crate::nn::TrainedBetaVae>();
+}

@@ -176,7 +176,7 @@ impl TrainedGraphVae {
     fn run(
         &self,
         samples: &[GraphSample],
-        f: impl Fn(&GraphVae, Tensor<2>, &super::graph::GraphTensors) -> Tensor<2>,
+        f: impl Fn(&GraphVae, Tensor<2>, &super::slots::GraphTensors) -> Tensor<2>,
     ) -> (Tensor<2>, GraphBatch) {
         let device: Device = inference_device();
         let members: Vec<&GraphSample> = samples.iter().collect();

@@ -16,13 +16,15 @@ pub mod graph;
 pub mod graph_vae;
 mod graph_vae_train;
 mod init;
+pub mod slots;
 pub mod train;
 
 pub use beta_vae::{BetaVaeConfig, CoordinateScaling};
 pub use beta_vae_train::{BetaVaeTraining, TrainedBetaVae, train_beta_vae};
 pub use error::NnError;
 pub use feast::{FeaStConfig, FeaStConv};
-pub use graph::{Features, GraphBatch, GraphSample, GraphTensors, PositionScaling};
+pub use graph::{Features, GraphBatch, GraphSample, PositionScaling};
 pub use graph_vae::GraphVaeConfig;
 pub use graph_vae_train::{GraphVaeTraining, TrainedGraphVae, train_graph_vae};
+pub use slots::{GraphTensors, SlotLayout};
 pub use train::{Flow, Monitor, Unmonitored};
