@@ -33,7 +33,7 @@ impl BetaVaeConfig {
     /// Checks that every size is usable.
     pub fn validate(&self) -> Result<(), NnError> {
         require(
-            self.d_in > 0 && self.d_in % 3 == 0,
+            self.d_in > 0 && self.d_in.is_multiple_of(3),
             "d_in",
             "must be a positive multiple of 3",
         )?;

@@ -44,7 +44,7 @@ impl FeaStConfig {
     pub fn init(&self, rng: &mut ChaCha8Rng, device: &Device) -> FeaStConv {
         let bound = fan_in_bound(self.d_in);
         FeaStConv {
-            weight: uniform([self.heads, self.d_in, self.d_out], bound, rng, device),
+            weight: uniform([self.d_in, self.heads, self.d_out], bound, rng, device),
             steer: uniform([self.d_in, self.heads], bound, rng, device),
             steer_offset: normal([self.heads], OFFSET_INIT_STD, rng, device),
             bias: normal([self.d_out], OFFSET_INIT_STD, rng, device),
@@ -55,7 +55,7 @@ impl FeaStConfig {
 /// One FeaStConv layer.
 #[derive(Module, Debug)]
 pub struct FeaStConv {
-    /// The head weight matrices `W_m`, `[H, d_in, d_out]` (acting as `x·W_m`).
+    /// The head weight matrices, `[d_in, H, d_out]`: `W_m = weight[:, m, :]` acts as `x·W_m`.
     pub weight: Param<Tensor<3>>,
     /// The steering directions `u_m` as columns, `[d_in, H]`.
     pub steer: Param<Tensor<2>>,
@@ -68,7 +68,7 @@ pub struct FeaStConv {
 impl FeaStConv {
     /// `(H, d_in, d_out)`.
     pub fn dims(&self) -> (usize, usize, usize) {
-        let [h, d_in, d_out] = self.weight.shape().dims();
+        let [d_in, h, d_out] = self.weight.shape().dims();
         (h, d_in, d_out)
     }
 
@@ -77,11 +77,7 @@ impl FeaStConv {
     pub fn forward(&self, x: Tensor<2>, graph: &GraphTensors) -> Tensor<2> {
         let (heads, d_in, d_out) = self.dims();
         let (n, r, d) = (graph.node_count, graph.row_count, graph.slots);
-        let w = self
-            .weight
-            .val()
-            .swap_dims(0, 1)
-            .reshape([d_in, heads * d_out]);
+        let w = self.weight.val().reshape([d_in, heads * d_out]);
         let xw = x.clone().matmul(w);
         let xu = x.matmul(self.steer.val());
         let (xw, xu_rows) = match &graph.row_sources {

@@ -103,7 +103,7 @@ fn naive(layer: &FeaStConv, x: &[f64], batch: &GraphBatch) -> Vec<f64> {
             let q = (logits[m] - top).exp() / z;
             for o in 0..d_out {
                 let wx: f64 = (0..d_in)
-                    .map(|k| x[j * d_in + k] * w[(m * d_in + k) * d_out + o])
+                    .map(|k| x[j * d_in + k] * w[(k * h + m) * d_out + o])
                     .sum();
                 sum[i * d_out + o] += q * wx;
             }

@@ -321,8 +321,8 @@ mod tests {
         let normals = s.normals.as_ref().unwrap();
         // Corner (1,1,1)·5 points outward along (1,1,1)/√3.
         let k = 1.0 / 3f32.sqrt();
-        for d in 0..3 {
-            assert!((normals[0][d] - k).abs() < 1e-6);
+        for c in normals[0] {
+            assert!((c - k).abs() < 1e-6);
         }
         let batch = GraphBatch::new(&[&s], &PositionScaling::IDENTITY);
         assert_eq!(batch.d_x, 6);

@@ -165,8 +165,8 @@ impl TrainedGraphVae {
         let scaling = self.model.scaling();
         let mut out = split_rows(x_hat, &batch, self.config.d_x).remove(0);
         for row in out.chunks_mut(self.config.d_x) {
-            for d in 0..3 {
-                row[d] = row[d] * scaling.scale + scaling.shift[d];
+            for (v, shift) in row.iter_mut().zip(scaling.shift) {
+                *v = *v * scaling.scale + shift;
             }
         }
         Ok(out)

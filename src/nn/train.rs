@@ -63,10 +63,9 @@ pub(crate) fn adam() -> ModuleOptimizer {
 
 /// Step decay: `lr · gamma^⌊epoch / step⌋` (no decay when `step` is 0).
 pub fn step_decay(lr: f64, epoch: usize, step: usize, gamma: f64) -> f64 {
-    if step == 0 {
-        lr
-    } else {
-        lr * gamma.powi((epoch / step) as i32)
+    match epoch.checked_div(step) {
+        Some(steps) => lr * gamma.powi(steps as i32),
+        None => lr,
     }
 }
 
