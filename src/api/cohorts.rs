@@ -15,10 +15,12 @@ use super::error::{ApiError, Problem};
 use super::extract::{Json, Path, Query};
 use super::meshes::{MeshFile, mesh_file_response};
 use super::models::{FormatQuery, load_model};
+use crate::eval::metrics::IndexedShapes;
 use crate::geometry::pca::Sampling;
 use crate::mesh;
+use crate::models::ModelError;
 use crate::models::ReferencePopulation;
-use crate::models::cohort::{CohortSpec, Criterion, Member, sample_cohort};
+use crate::models::cohort::{CohortSpec, Criterion, Member, TrainingIndex, sample_cohort};
 use crate::store::cohorts::{CohortRecord, NewMember};
 
 /// Largest cohort.
@@ -64,6 +66,10 @@ pub struct CreateCohort {
     /// 20 draws per member).
     #[serde(default)]
     pub only_accepted: bool,
+    /// Draw again instead of keeping a member that is a near copy of a training shape
+    /// (nearer than the model's privacy threshold).
+    #[serde(default)]
+    pub exclude_near_copies: bool,
 }
 
 /// A cohort with its acceptance report and members.
@@ -110,7 +116,7 @@ impl From<CohortRecord> for CohortView {
     }
 }
 
-fn member_summary(m: &Member) -> serde_json::Value {
+fn member_summary(m: &Member, training_ids: &[String]) -> serde_json::Value {
     let biomarkers: serde_json::Map<String, serde_json::Value> = m
         .biomarkers
         .iter()
@@ -121,6 +127,9 @@ fn member_summary(m: &Member) -> serde_json::Value {
         "draw": m.draw,
         "biomarkers": biomarkers,
         "accepted": m.accepted,
+        "nearest_training_mm": m.nearest_training.distance_mm,
+        "nearest_training_mesh_id": training_ids.get(m.nearest_training.index),
+        "near_copy": m.near_copy,
     })
 }
 
@@ -154,7 +163,13 @@ async fn create_cohort(
     Json(body): Json<CreateCohort>,
 ) -> Result<(StatusCode, HeaderMap, Json<CohortView>), ApiError> {
     check_request(&body)?;
-    let (model, reference) = load_model(&state, &model_id).await?;
+    let (stored, reference) = load_model(&state, &model_id).await?;
+    let training_ids = state
+        .store
+        .model(&model_id)
+        .await?
+        .provenance
+        .training_mesh_ids;
     let reference: ReferencePopulation = serde_json::from_value(reference)
         .map_err(|e| ApiError::internal(format!("model {model_id} reference: {e}")))?;
     let spec = CohortSpec {
@@ -163,22 +178,27 @@ async fn create_cohort(
         sampling: body.sampling,
         criterion: body.acceptance.criterion,
         only_accepted: body.only_accepted,
+        exclude_near_copies: body.exclude_near_copies,
         max_draws: body.size.saturating_mul(DRAWS_PER_MEMBER),
     };
-    let (members, report) =
-        tokio::task::spawn_blocking(move || sample_cohort(model.shape_model(), &reference, &spec))
-            .await
-            .map_err(|e| ApiError::internal(e.to_string()))?
-            .map_err(|e| {
-                ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e.code(), e.to_string())
-            })?;
+    let (members, report) = tokio::task::spawn_blocking(move || {
+        let shapes = stored.training.to_f64();
+        let training = TrainingIndex {
+            shapes: IndexedShapes::new(&shapes).map_err(ModelError::from)?,
+            privacy: &stored.training.privacy,
+        };
+        sample_cohort(stored.model.shape_model(), &reference, &training, &spec)
+    })
+    .await
+    .map_err(|e| ApiError::internal(e.to_string()))?
+    .map_err(|e| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e.code(), e.to_string()))?;
     let report = serde_json::to_value(&report).map_err(|e| ApiError::internal(e.to_string()))?;
     let request = serde_json::to_value(&body).map_err(|e| ApiError::internal(e.to_string()))?;
     let new_members = members
         .iter()
         .map(|m| NewMember {
             index: m.index,
-            summary: member_summary(m),
+            summary: member_summary(m, &training_ids),
             mesh: m.mesh.clone(),
         })
         .collect();

@@ -7,6 +7,7 @@ pub mod auth;
 mod cohorts;
 mod datasets;
 pub mod error;
+mod events;
 pub mod extract;
 mod jobs;
 mod meshes;

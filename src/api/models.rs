@@ -13,7 +13,7 @@ use super::error::{ApiError, Problem};
 use super::extract::{Json, PageQuery, Paginated, Path, Query};
 use super::meshes::{MeshFile, mesh_file_response, parse_format};
 use crate::mesh::{self, Format};
-use crate::models::AnyModel;
+use crate::models::StoredModel;
 use crate::store::models::{ModelRecord, Provenance};
 
 pub(super) fn router() -> OpenApiRouter<AppState> {
@@ -168,9 +168,9 @@ impl FormatQuery {
 pub(super) async fn load_model(
     state: &AppState,
     id: &str,
-) -> Result<(AnyModel, serde_json::Value), ApiError> {
+) -> Result<(StoredModel, serde_json::Value), ApiError> {
     let (payload, reference) = state.store.model_payload(id).await?;
-    let model = tokio::task::spawn_blocking(move || AnyModel::from_bytes(&payload))
+    let model = tokio::task::spawn_blocking(move || StoredModel::from_bytes(&payload))
         .await
         .map_err(|e| ApiError::internal(e.to_string()))?
         .map_err(|e| ApiError::internal(format!("model {id}: {e}")))?;
@@ -195,6 +195,6 @@ async fn download_atlas(
 ) -> Result<Response, ApiError> {
     let format = q.format()?;
     let (model, _) = load_model(&state, &id).await?;
-    let bytes = mesh::io::write(model.shape_model().atlas(), format);
+    let bytes = mesh::io::write(model.model.shape_model().atlas(), format);
     Ok(mesh_file_response(&format!("atlas_{id}"), format, bytes))
 }

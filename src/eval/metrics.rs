@@ -61,8 +61,8 @@ pub struct Specificity {
 /// Vertex sets with their k-d trees, built once and compared many times.
 #[derive(Debug)]
 pub struct IndexedShapes<'a> {
-    shapes: Vec<&'a [[f64; 3]]>,
-    indices: Vec<PointCloudIndex>,
+    pub(crate) shapes: Vec<&'a [[f64; 3]]>,
+    pub(crate) indices: Vec<PointCloudIndex>,
 }
 
 impl<'a> IndexedShapes<'a> {
@@ -87,7 +87,7 @@ impl<'a> IndexedShapes<'a> {
 }
 
 /// Applies `f` to each item on scoped threads; output order equals input order.
-fn parallel_map<T: Sync, U: Send>(items: &[T], f: impl Fn(&T) -> U + Sync) -> Vec<U> {
+pub(crate) fn parallel_map<T: Sync, U: Send>(items: &[T], f: impl Fn(&T) -> U + Sync) -> Vec<U> {
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
         .min(items.len())

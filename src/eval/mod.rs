@@ -6,6 +6,7 @@ pub mod biomarkers;
 mod error;
 pub mod kde;
 pub mod metrics;
+pub mod privacy;
 pub mod stats;
 
 pub use biomarkers::Biomarkers;

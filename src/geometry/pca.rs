@@ -116,6 +116,29 @@ fn check_samples(samples: &[Vec<f64>]) -> Result<usize, GeometryError> {
     Ok(d)
 }
 
+/// Singular values and right singular vectors (one `Vec` of length `D` per value) of the
+/// centred `[K, D]` sample matrix. faer's vectorised kernels run on a thread of their own:
+/// they can leave the calling thread's vector unit in a state that slows later scalar
+/// floating-point code (registration, distances) many times over.
+fn thin_svd_on_own_thread(
+    samples: &[Vec<f64>],
+    mean: &[f64],
+) -> Result<(Vec<f64>, Vec<Vec<f64>>), GeometryError> {
+    let decompose = || {
+        let centred =
+            Mat::<f64>::from_fn(samples.len(), mean.len(), |i, j| samples[i][j] - mean[j]);
+        let svd = centred.thin_svd().map_err(|_| GeometryError::SvdFailed)?;
+        let (s, v) = (svd.S().column_vector(), svd.V());
+        let singular: Vec<f64> = (0..s.nrows()).map(|i| s[i]).collect();
+        let vectors = (0..s.nrows())
+            .map(|i| (0..mean.len()).map(|j| v[(j, i)]).collect())
+            .collect();
+        Ok((singular, vectors))
+    };
+    std::thread::scope(|scope| scope.spawn(decompose).join())
+        .unwrap_or(Err(GeometryError::SvdFailed))
+}
+
 impl PcaModel {
     /// Fits all non-degenerate modes to `K ≥ 2` flattened shapes of equal length `D`.
     pub fn fit(samples: &[Vec<f64>]) -> Result<Self, GeometryError> {
@@ -124,11 +147,11 @@ impl PcaModel {
         let mean: Vec<f64> = (0..d)
             .map(|j| samples.iter().map(|s| s[j]).sum::<f64>() / k as f64)
             .collect();
-        let centred = Mat::<f64>::from_fn(k, d, |i, j| samples[i][j] - mean[j]);
-        let svd = centred.thin_svd().map_err(|_| GeometryError::SvdFailed)?;
-        let (s, v) = (svd.S().column_vector(), svd.V());
-        let rank = s.nrows().min(k - 1);
-        let all: Vec<f64> = (0..rank).map(|i| s[i] * s[i] / (k - 1) as f64).collect();
+        let (singular, v) = thin_svd_on_own_thread(samples, &mean)?;
+        let rank = singular.len().min(k - 1);
+        let all: Vec<f64> = (0..rank)
+            .map(|i| singular[i] * singular[i] / (k - 1) as f64)
+            .collect();
         let top = all.first().copied().unwrap_or(0.0);
         if top <= 0.0 {
             return Err(GeometryError::DegenerateInput(
@@ -140,9 +163,7 @@ impl PcaModel {
             .take_while(|l| **l > RELATIVE_VARIANCE_FLOOR * top)
             .count();
         let variances = all[..kept].to_vec();
-        let modes = (0..kept)
-            .map(|i| oriented((0..d).map(|j| v[(j, i)]).collect()))
-            .collect();
+        let modes = (0..kept).map(|i| oriented(v[i].clone())).collect();
         let total: f64 = variances.iter().sum();
         let cumulative_explained = variances
             .iter()

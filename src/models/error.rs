@@ -28,8 +28,9 @@ pub enum ModelError {
     },
     /// Acceptance sampling could not find enough accepted members.
     #[error(
-        "only {accepted} of {draws} draws passed the {criterion} criterion, short of the \
-         {size} asked for; lower size, use a wider criterion (range) or turn off only_accepted"
+        "only {accepted} of {draws} draws passed the {criterion} criterion and the privacy \
+         guard, short of the {size} asked for; lower size, use a wider criterion (range), or \
+         turn off only_accepted or exclude_near_copies"
     )]
     AcceptanceUnreachable {
         /// Members asked for.
@@ -53,6 +54,12 @@ pub enum ModelError {
     /// A stored model could not be decoded.
     #[error("stored model is corrupt: {0}")]
     Corrupt(String),
+    /// Inputs of a numerical step do not fit together (sizes, non-finite values).
+    #[error("invalid model input: {0}")]
+    InvalidInput(String),
+    /// A numerical step failed (e.g. a factorisation).
+    #[error("numerical failure: {0}")]
+    Numerical(String),
 }
 
 impl ModelError {
@@ -66,6 +73,8 @@ impl ModelError {
             Self::Eval(e) => e.code(),
             Self::Cancelled(_) => "job.cancelled",
             Self::Corrupt(_) => "model.corrupt",
+            Self::InvalidInput(_) => "model.invalid_input",
+            Self::Numerical(_) => "model.numerical",
         }
     }
 

@@ -4,6 +4,7 @@
 //! Model types: `rsmp` (rigid CPD + soft correspondences + PCA, thesis ch. 3).
 
 pub mod alignment;
+pub mod asmg;
 pub mod cohort;
 mod error;
 pub mod evaluation;
@@ -18,6 +19,8 @@ pub use error::ModelError;
 pub use evaluation::Evaluation;
 pub use reference::ReferencePopulation;
 
+use crate::eval::metrics::IndexedShapes;
+use crate::eval::privacy::PrivacyThreshold;
 use crate::geometry::pca::Sampling;
 use crate::mesh::Mesh;
 
@@ -76,18 +79,60 @@ pub enum AnyModel {
 
 impl AnyModel {
     /// The model behind the common interface.
-    pub fn shape_model(&self) -> &dyn ShapeModel {
+    pub fn shape_model(&self) -> &(dyn ShapeModel + Sync) {
         match self {
             Self::Rsmp(m) => m,
         }
     }
+}
 
+/// The training shapes in the model frame, kept with a model for the privacy guard and for
+/// offline specificity.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct TrainingShapes {
+    /// Vertices of each training mesh after pre-alignment, mm, `[n_vertices, 3]` each.
+    pub shapes: Vec<Vec<[f32; 3]>>,
+    /// Near-copy threshold derived from the shapes' own nearest-neighbour distances.
+    pub privacy: PrivacyThreshold,
+}
+
+impl TrainingShapes {
+    /// From aligned training vertices; the threshold is the `percentile` of their
+    /// nearest-neighbour distances.
+    pub fn new(aligned: &[Vec<[f64; 3]>], percentile: f64) -> Result<Self, ModelError> {
+        let privacy = IndexedShapes::new(aligned)?.privacy_threshold(percentile)?;
+        let shapes = aligned
+            .iter()
+            .map(|s| s.iter().map(|p| p.map(|c| c as f32)).collect())
+            .collect();
+        Ok(Self { shapes, privacy })
+    }
+
+    /// The shapes in f64, for indexing.
+    pub fn to_f64(&self) -> Vec<Vec<[f64; 3]>> {
+        self.shapes
+            .iter()
+            .map(|s| s.iter().map(|p| p.map(f64::from)).collect())
+            .collect()
+    }
+}
+
+/// What is stored for a model: the fitted model and its training shapes.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct StoredModel {
+    /// The fitted model.
+    pub model: AnyModel,
+    /// Training shapes and privacy threshold.
+    pub training: TrainingShapes,
+}
+
+impl StoredModel {
     /// Compact binary form for storage.
     pub fn to_bytes(&self) -> Result<Vec<u8>, ModelError> {
         postcard::to_stdvec(self).map_err(|e| ModelError::Corrupt(e.to_string()))
     }
 
-    /// From [`AnyModel::to_bytes`].
+    /// From [`StoredModel::to_bytes`].
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, ModelError> {
         postcard::from_bytes(bytes).map_err(|e| ModelError::Corrupt(e.to_string()))
     }
@@ -133,8 +178,8 @@ pub struct ModelSummary {
 /// A fit's result: the model, its summary and the reference population.
 #[derive(Debug, Clone)]
 pub struct FitOutcome {
-    /// The fitted model.
-    pub model: AnyModel,
+    /// The fitted model and its training shapes.
+    pub model: StoredModel,
     /// Atlas, evaluation, timings.
     pub summary: ModelSummary,
     /// Biomarkers of the training population.

@@ -10,8 +10,9 @@ use super::evaluation::evaluate;
 use super::progress::{Progress, Stages};
 use super::{
     AnyModel, AtlasInfo, FitOutcome, ModelError, ModelSummary, Reconstruction, ReferencePopulation,
-    ShapeModel, StageTiming,
+    ShapeModel, StageTiming, StoredModel, TrainingShapes,
 };
+use crate::eval::privacy::DEFAULT_PERCENTILE;
 use crate::geometry::correspondence::{flatten, normalised_shape, unflatten};
 use crate::geometry::cpd::RigidCpdParams;
 use crate::geometry::pca::{PcaModel, PcaParams, Sampling};
@@ -101,6 +102,7 @@ impl RsmpParams {
                 max_iterations: self.cpd_max_iterations,
                 tolerance: self.cpd_tolerance,
                 scale: self.scale,
+                min_sigma2: 0.0,
             },
             multistart: self.multistart,
             ..AlignmentParams::default()
@@ -251,6 +253,7 @@ pub fn fit(
         progress,
     )?;
     let reference = ReferencePopulation::from_meshes(training)?;
+    let training_shapes = TrainingShapes::new(&aligned, DEFAULT_PERCENTILE)?;
     stages.close();
     let summary = ModelSummary {
         atlas: AtlasInfo {
@@ -271,8 +274,12 @@ pub fn fit(
             })
             .collect(),
     };
-    Ok(FitOutcome {
+    let model = StoredModel {
         model: AnyModel::Rsmp(model),
+        training: training_shapes,
+    };
+    Ok(FitOutcome {
+        model,
         summary,
         reference,
     })
@@ -305,7 +312,7 @@ mod tests {
             "rsmp fit of 6+2 LV phantoms: {:.1} s",
             started.elapsed().as_secs_f64()
         );
-        let AnyModel::Rsmp(model) = &outcome.model;
+        let AnyModel::Rsmp(model) = &outcome.model.model;
         let summary = &outcome.summary;
         assert_eq!(summary.training_count, 6);
         assert!(summary.n_modes.unwrap() >= 1 && summary.n_modes.unwrap() <= 5);
@@ -329,7 +336,10 @@ mod tests {
             "{volume} ml"
         );
         let bytes = outcome.model.to_bytes().unwrap();
-        let AnyModel::Rsmp(back) = AnyModel::from_bytes(&bytes).unwrap();
-        assert_eq!(back.pca, model.pca);
+        let back = StoredModel::from_bytes(&bytes).unwrap();
+        let AnyModel::Rsmp(back_model) = &back.model;
+        assert_eq!(back_model.pca, model.pca);
+        assert_eq!(back.training.shapes.len(), 6);
+        assert!(back.training.privacy.threshold_mm > 0.0);
     }
 }

@@ -73,6 +73,40 @@ async fn wait_for(s: &TestServer, job: &str, timeout: Duration) -> Value {
     }
 }
 
+/// Reads `GET /v1/jobs/{id}/events` to its end: `(event name, job record)` in order.
+async fn follow_events(s: &TestServer, job: &str, timeout: Duration) -> Vec<(String, Value)> {
+    let mut response = s
+        .client
+        .get(s.url(&format!("/v1/jobs/{job}/events")))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    assert_eq!(response.headers()["content-type"], "text/event-stream");
+    let mut text = String::new();
+    let read_all = async {
+        while let Some(chunk) = response.chunk().await.unwrap() {
+            text.push_str(&String::from_utf8_lossy(&chunk));
+        }
+    };
+    tokio::time::timeout(timeout, read_all)
+        .await
+        .expect("the event stream did not end in time");
+    text.split("\n\n")
+        .filter_map(|block| {
+            let field = |name: &str| {
+                block
+                    .lines()
+                    .find_map(|l| l.strip_prefix(name).map(str::trim_start))
+            };
+            Some((
+                field("event:")?.to_owned(),
+                serde_json::from_str(field("data:")?).ok()?,
+            ))
+        })
+        .collect()
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn phantoms_to_model_to_reproducible_cohort() {
     let s = TestServer::start().await;
@@ -85,8 +119,19 @@ async fn phantoms_to_model_to_reproducible_cohort() {
         format!("/v1/jobs/{}", job["id"].as_str().unwrap())
     );
     assert_eq!(job["status"], "queued");
-    let done = wait_for(&s, job["id"].as_str().unwrap(), Duration::from_secs(900)).await;
+    let events = follow_events(&s, job["id"].as_str().unwrap(), Duration::from_secs(900)).await;
+    let (last_kind, done) = events.last().unwrap().clone();
+    assert_eq!(last_kind, "end");
     assert_eq!(done["status"], "succeeded", "{done}");
+    let stages: Vec<&str> = events
+        .iter()
+        .filter(|(kind, job)| kind == "progress" && job["status"] == "running")
+        .filter_map(|(_, job)| job["progress"]["stage"].as_str())
+        .collect();
+    assert!(
+        stages.contains(&"alignment") && stages.contains(&"evaluation"),
+        "stages seen in the event stream: {stages:?}"
+    );
     assert_eq!(done["progress"]["fraction"], 1.0);
 
     let model_id = done["model_id"].as_str().unwrap();
@@ -144,6 +189,35 @@ async fn phantoms_to_model_to_reproducible_cohort() {
     }
     assert!(cohort["report"]["biomarkers"]["sphericity"].is_object());
     assert!(cohort["members"][0]["accepted"]["mean"].is_boolean());
+    assert!(
+        cohort["report"]["privacy"]["threshold_mm"]
+            .as_f64()
+            .unwrap()
+            > 0.0
+    );
+    for m in cohort["members"].as_array().unwrap() {
+        assert!(m["nearest_training_mm"].as_f64().unwrap() > 0.0);
+        assert!(m["near_copy"].is_boolean());
+        let nearest = m["nearest_training_mesh_id"].as_str().unwrap();
+        assert!(
+            model["provenance"]["training_mesh_ids"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|id| id == nearest)
+        );
+    }
+    let filtered = json!({"size": 20, "seed": 7, "only_accepted": true, "exclude_near_copies": true, "acceptance": {"criterion": "range"}});
+    let strict = expect_json(
+        s.client.post(&url).json(&filtered).send().await.unwrap(),
+        StatusCode::CREATED,
+    )
+    .await;
+    for m in strict["members"].as_array().unwrap() {
+        assert_eq!(m["accepted"]["range"], true);
+        assert_eq!(m["near_copy"], false);
+    }
+    assert_eq!(strict["report"]["acceptance"]["range"], 1.0);
 
     let member = |cohort: &Value| {
         s.url(&format!(
@@ -332,6 +406,18 @@ async fn idempotent_submission_and_cancellation() {
         .unwrap();
     expect_problem(again, StatusCode::CONFLICT, "job.already_finished").await;
     let missing = s.client.get(s.url("/v1/jobs/nope")).send().await.unwrap();
+    expect_problem(missing, StatusCode::NOT_FOUND, "job.not_found").await;
+    // The event stream of an ended job is its final record, then the end.
+    let events = follow_events(&s, id, Duration::from_secs(10)).await;
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert_eq!(events[0].0, "end");
+    assert_eq!(events[0].1["status"], "cancelled");
+    let missing = s
+        .client
+        .get(s.url("/v1/jobs/nope/events"))
+        .send()
+        .await
+        .unwrap();
     expect_problem(missing, StatusCode::NOT_FOUND, "job.not_found").await;
 }
 

@@ -32,6 +32,11 @@ pub struct RigidCpdParams {
     pub tolerance: f64,
     /// Estimate the isotropic scale `s` (otherwise `s = 1`).
     pub scale: bool,
+    /// Smallest variance σ² (mm²) the EM may reach; 0 lets it shrink freely. A floor at
+    /// about the squared point spacing keeps a coarse registration from snapping onto
+    /// individual points.
+    #[serde(default)]
+    pub min_sigma2: f64,
 }
 
 impl Default for RigidCpdParams {
@@ -41,6 +46,7 @@ impl Default for RigidCpdParams {
             max_iterations: 100,
             tolerance: 1e-6,
             scale: false,
+            min_sigma2: 0.0,
         }
     }
 }
@@ -62,6 +68,11 @@ impl RigidCpdParams {
         if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
             return Err(GeometryError::InvalidParams(
                 "cpd tolerance must be finite and >= 0".into(),
+            ));
+        }
+        if !(self.min_sigma2.is_finite() && self.min_sigma2 >= 0.0) {
+            return Err(GeometryError::InvalidParams(
+                "cpd min_sigma2 must be finite and >= 0".into(),
             ));
         }
         Ok(())
@@ -262,7 +273,8 @@ fn em_loop(
     if !(sigma2.is_finite() && sigma2 > 0.0) {
         return Err(GeometryError::DegenerateInput("all points coincide".into()));
     }
-    let floor = sigma2 * SIGMA2_FLOOR_RELATIVE;
+    let floor = (sigma2 * SIGMA2_FLOOR_RELATIVE).max(params.min_sigma2);
+    sigma2 = sigma2.max(floor);
     let (mut iterations, mut converged, mut previous_nll) = (0, false, f64::NAN);
     while iterations < params.max_iterations {
         let sums = estep::posterior_sums_moved(&transform.apply_all(&c.y), &c.x, sigma2, params.w);
