@@ -6,7 +6,7 @@ use super::params::ModelParams;
 use super::split::holdout_split;
 use crate::mesh::Mesh;
 use crate::models::progress::Progress;
-use crate::models::{FitOutcome, ModelError, ModelType, rsmp};
+use crate::models::{FitOutcome, ModelError, ModelType, asmg, rsmp};
 use crate::store::jobs::Job;
 use crate::store::models::{NewModel, Provenance};
 use crate::store::{Store, StoreError};
@@ -93,6 +93,14 @@ pub fn run_job(
     let split = load_split(handle, store, job, params.template_mesh_id())?;
     let outcome: FitOutcome = match &params {
         ModelParams::Rsmp(p) => rsmp::fit(
+            &split.training,
+            &split.holdout,
+            p,
+            split.template_index,
+            job.seed,
+            progress,
+        )?,
+        ModelParams::Asmg(p) => asmg::fit(
             &split.training,
             &split.holdout,
             p,
