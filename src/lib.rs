@@ -18,6 +18,8 @@ pub mod jobs;
 pub mod mesh;
 /// Shape models (rsmp, ...) behind one interface, and virtual cohorts (pure).
 pub mod models;
+/// Neural networks on burn: FeaStConv, the graph VAE and the beta-VAE (pure).
+pub mod nn;
 /// Report pages: self-contained HTML with inline SVG plots of cohorts and models (pure).
 pub mod report;
 /// NIfTI label volumes to closed surface meshes: labels, components, marching cubes (pure).

@@ -39,7 +39,7 @@ pub(super) fn router() -> OpenApiRouter<AppState> {
 pub struct SubmitJob {
     /// Dataset to fit.
     pub dataset_id: String,
-    /// Model type: `rsmp`.
+    /// Model type: `rsmp` or `asmg`.
     #[schema(example = "rsmp")]
     pub model_type: String,
     /// Model parameters; omitted ones take their defaults (see the model's documentation).
@@ -139,12 +139,10 @@ async fn check_dataset(
     if let Some(t) = template
         && !ids.iter().any(|id| id == t)
     {
+        let field = format!("params.{}", params.template_field());
         return Err(ApiError::invalid_field(
-            "params.template",
-            format!(
-                "params.template: mesh {t} is not in dataset {}",
-                body.dataset_id
-            ),
+            &field,
+            format!("{field}: mesh {t} is not in dataset {}", body.dataset_id),
         ));
     }
     let (training, _) = holdout_split(&ids, holdout, body.seed, template);

@@ -4,7 +4,7 @@
 use super::params::ModelParams;
 use crate::mesh::Mesh;
 use crate::models::progress::Progress;
-use crate::models::{FitOutcome, ModelError, rsmp};
+use crate::models::{FitOutcome, ModelError, asmg, rsmp};
 
 /// Fits the model that `params` describe to `training` and evaluates it on `holdout`.
 ///
@@ -20,5 +20,6 @@ pub fn fit_model(
 ) -> Result<FitOutcome, ModelError> {
     match params {
         ModelParams::Rsmp(p) => rsmp::fit(training, holdout, p, template_index, seed, progress),
+        ModelParams::Asmg(p) => asmg::fit(training, holdout, p, template_index, seed, progress),
     }
 }

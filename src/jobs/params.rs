@@ -4,6 +4,7 @@
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
+use crate::models::asmg::AsmgParams;
 use crate::models::rsmp::RsmpParams;
 use crate::models::{ModelError, ModelType};
 
@@ -12,6 +13,8 @@ use crate::models::{ModelError, ModelType};
 pub enum ModelParams {
     /// Parameters of `rsmp`.
     Rsmp(RsmpParams),
+    /// Parameters of `asmg`.
+    Asmg(AsmgParams),
 }
 
 fn parse<T: DeserializeOwned>(params: &serde_json::Value) -> Result<T, ModelError> {
@@ -48,6 +51,11 @@ impl ModelParams {
                 p.check()?;
                 Ok(Self::Rsmp(p))
             }
+            ModelType::Asmg => {
+                let p: AsmgParams = parse(params)?;
+                p.check()?;
+                Ok(Self::Asmg(p))
+            }
         }
     }
 
@@ -58,6 +66,15 @@ impl ModelParams {
         }
         match self {
             Self::Rsmp(p) => value(p),
+            Self::Asmg(p) => value(p),
+        }
+    }
+
+    /// The name of the parameter that names a mesh as template or atlas.
+    pub fn template_field(&self) -> &'static str {
+        match self {
+            Self::Rsmp(_) => "template",
+            Self::Asmg(_) => "atlas",
         }
     }
 
@@ -65,6 +82,7 @@ impl ModelParams {
     pub fn template_mesh_id(&self) -> Option<&str> {
         match self {
             Self::Rsmp(p) => p.template.as_deref(),
+            Self::Asmg(p) => p.atlas_mesh_id(),
         }
     }
 }
@@ -89,5 +107,36 @@ mod tests {
         assert_eq!(field_of(json!({"n_modes": 0})), "n_modes");
         assert_eq!(field_of(json!({"variance": 0.9})), "variance");
         assert_eq!(field_of(json!({"cpd_w": 1.5})), "cpd_w");
+    }
+
+    fn asmg_field_of(params: serde_json::Value) -> String {
+        match ModelParams::parse(ModelType::Asmg, &params) {
+            Err(ModelError::InvalidParams { field, .. }) => field,
+            other => panic!("expected invalid params, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn asmg_params_fill_in_defaults_and_reject_bad_fields() {
+        let p = ModelParams::parse(ModelType::Asmg, &serde_json::Value::Null).unwrap();
+        let json = p.to_json();
+        assert_eq!(json["features"], "spatial");
+        assert_eq!(json["atlas"], "auto");
+        assert_eq!(json["latent_dim"], 16);
+        assert_eq!(json["smoothing"], "displacement");
+        assert!(json["temperature"].is_null());
+        assert_eq!(p.template_mesh_id(), None);
+        let p = ModelParams::parse(
+            ModelType::Asmg,
+            &json!({"features": "hybrid", "atlas": "m1", "temperature": 10000.0}),
+        )
+        .unwrap();
+        assert_eq!(p.template_mesh_id(), Some("m1"));
+        assert_eq!(p.to_json()["features"], "hybrid");
+        assert_eq!(asmg_field_of(json!({"features": "spectral"})), "features");
+        assert_eq!(asmg_field_of(json!({"epochs": 3})), "epochs");
+        assert_eq!(asmg_field_of(json!({"latent_dim": 0})), "latent_dim");
+        assert_eq!(asmg_field_of(json!({"beta": -1.0})), "beta");
+        assert_eq!(asmg_field_of(json!({"smoothing": "both"})), "smoothing");
     }
 }

@@ -1,7 +1,8 @@
 //! Shape models behind one interface: fit on training meshes, sample new shapes,
 //! reconstruct unseen ones. Pure: no async, SQL or HTTP.
 //!
-//! Model types: `rsmp` (rigid CPD + soft correspondences + PCA, thesis ch. 3).
+//! Model types: `rsmp` (rigid CPD + soft correspondences + PCA, thesis ch. 3) and `asmg`
+//! (graph VAE + attention correspondences + learned atlas + beta-VAE, thesis ch. 4).
 
 pub mod alignment;
 pub mod asmg;
@@ -30,16 +31,19 @@ use crate::mesh::Mesh;
 pub enum ModelType {
     /// Rigid CPD to a template, soft-correspondence normalisation, PCA.
     Rsmp,
+    /// Graph VAE embeddings, attention correspondences, learned atlas, beta-VAE.
+    Asmg,
 }
 
 impl ModelType {
     /// Every model type.
-    pub const ALL: [ModelType; 1] = [ModelType::Rsmp];
+    pub const ALL: [ModelType; 2] = [ModelType::Rsmp, ModelType::Asmg];
 
     /// The name used in the API.
     pub fn as_str(self) -> &'static str {
         match self {
             Self::Rsmp => "rsmp",
+            Self::Asmg => "asmg",
         }
     }
 
@@ -71,10 +75,14 @@ pub trait ShapeModel {
 }
 
 /// A fitted model of any type, as stored.
+// One value per loaded model, never kept in bulk: the size difference does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub enum AnyModel {
     /// See [`rsmp::RsmpModel`].
     Rsmp(rsmp::RsmpModel),
+    /// See [`asmg::AsmgModel`].
+    Asmg(asmg::AsmgModel),
 }
 
 impl AnyModel {
@@ -82,6 +90,7 @@ impl AnyModel {
     pub fn shape_model(&self) -> &(dyn ShapeModel + Sync) {
         match self {
             Self::Rsmp(m) => m,
+            Self::Asmg(m) => m,
         }
     }
 }

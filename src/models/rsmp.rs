@@ -315,7 +315,9 @@ mod tests {
             "rsmp fit of 6+2 LV phantoms: {:.1} s",
             started.elapsed().as_secs_f64()
         );
-        let AnyModel::Rsmp(model) = &outcome.model.model;
+        let AnyModel::Rsmp(model) = &outcome.model.model else {
+            panic!("an rsmp fit gives an rsmp model")
+        };
         let summary = &outcome.summary;
         assert_eq!(summary.training_count, 6);
         assert!(summary.n_modes.unwrap() >= 1 && summary.n_modes.unwrap() <= 5);
@@ -340,7 +342,9 @@ mod tests {
         );
         let bytes = outcome.model.to_bytes().unwrap();
         let back = StoredModel::from_bytes(&bytes).unwrap();
-        let AnyModel::Rsmp(back_model) = &back.model;
+        let AnyModel::Rsmp(back_model) = &back.model else {
+            panic!("the stored model is rsmp")
+        };
         assert_eq!(back_model.pca, model.pca);
         assert_eq!(back.training.shapes.len(), 6);
         assert!(back.training.privacy.threshold_mm > 0.0);

@@ -1,6 +1,7 @@
 //! End-to-end tests: one binary, a real server on an ephemeral port, a temporary database.
 
 mod architecture;
+mod asmg;
 mod auth;
 mod bad_uploads;
 mod cli;

@@ -1,5 +1,6 @@
-//! ASMG correspondence and atlas (thesis §4.2.1, app. A; SPEC §2.5 and §2.9): the numerical
-//! part of the model that works on per-vertex embeddings and needs no network.
+//! ASMG, the atlas-based shape model with a graph network (thesis ch. 4; SPEC §2.4–2.6 and
+//! §2.9). The correspondence and atlas part works on per-vertex embeddings and needs no
+//! network; [`fit`] and [`model`] tie it to the graph VAE Ψ and the beta-VAE generator.
 //!
 //! - [`embeddings`]: the `[n_vertices, d_z]` matrices the graph network Ψ hands over;
 //! - [`attention`]: soft correspondences `Φ_k` and normalised shapes `h_k = Φ_k X_k`;
@@ -7,16 +8,23 @@
 //! - [`smoothing`]: Laplacian smoothing of normalised shapes (positions or displacement);
 //! - [`atlas`]: the atlas update from the smoothed shapes, damped;
 //! - [`init`], [`icosphere`]: the initial atlas;
-//! - [`learn`]: Algorithm 1, the loop over all of the above until the atlas settles.
+//! - [`learn`]: Algorithm 1, the loop over all of the above until the atlas settles;
+//! - [`params`]: the job parameters of `model_type: "asmg"`;
+//! - [`fit`]: the whole fit (pre-alignment, Ψ, atlas, generator, evaluation);
+//! - [`model`]: the fitted model (sampling, reconstruction, stored weights).
 
 pub mod atlas;
 pub mod attention;
 pub mod embeddings;
+pub mod fit;
 pub mod icosphere;
 pub mod init;
 pub mod laplacian;
 pub mod learn;
+pub mod model;
+mod monitor;
 mod parallel;
+pub mod params;
 mod scores;
 pub mod smoothing;
 
@@ -26,10 +34,13 @@ pub use attention::{
     inverse_temperature, normalised_shape, score_moments,
 };
 pub use embeddings::Embeddings;
+pub use fit::fit;
 pub use init::{AtlasInit, initial_atlas};
 pub use laplacian::LaplacianSolver;
 pub use learn::{
     AtlasLoopParams, AtlasStep, LearnedAtlas, NormalisedShapes, ShapeInput, learn_atlas,
     normalise_shapes,
 };
+pub use model::AsmgModel;
+pub use params::{AsmgParams, FeatureKind, SmoothingTarget};
 pub use smoothing::{Smoother, Smoothing, SmoothingMethod, SmoothingParams, smooth};

@@ -1,0 +1,126 @@
+//! Checks of a whole ASMG fit on a few small LV phantoms.
+
+use super::*;
+use crate::geometry::pca::Sampling;
+use crate::mesh::measures::volume_ml;
+use crate::mesh::phantom::{self, Family};
+use crate::models::ShapeModel;
+use crate::models::cohort::draw_rng;
+use crate::models::progress::{Cancelled, ProgressUpdate, Silent};
+
+/// Small and quick: meshes of about 300 vertices, an atlas of about 200, few epochs.
+fn quick() -> AsmgParams {
+    AsmgParams {
+        max_vertices: 300,
+        atlas_vertices: 200,
+        epochs_graph: 2,
+        epochs_vae: 30,
+        cpd_max_iterations: 40,
+        ..AsmgParams::default()
+    }
+}
+
+fn phantoms(count: usize) -> Vec<Mesh> {
+    phantom::generate(Family::Lv, count, 11)
+        .into_iter()
+        .map(|p| p.mesh)
+        .collect()
+}
+
+#[test]
+fn fit_samples_reconstructs_and_round_trips() {
+    let meshes = phantoms(8);
+    let (training, holdout) = meshes.split_at(6);
+    let outcome = fit(training, holdout, &quick(), None, 4, &mut Silent).unwrap();
+    let AnyModel::Asmg(model) = &outcome.model.model else {
+        panic!("an asmg fit gives an asmg model")
+    };
+    let atlas = &model.atlas;
+    assert!(
+        (150..=260).contains(&atlas.vertex_count()),
+        "atlas of {} vertices",
+        atlas.vertex_count()
+    );
+    assert_eq!(outcome.summary.atlas.vertex_count, atlas.vertex_count());
+    let stages: Vec<&str> = outcome
+        .summary
+        .timings
+        .iter()
+        .map(|t| t.stage.as_str())
+        .collect();
+    assert_eq!(
+        stages,
+        ["alignment", "graph_vae", "atlas", "generator", "evaluation"]
+    );
+    let evaluation = &outcome.summary.evaluation;
+    let matching = evaluation.matching.unwrap();
+    let generalisation = evaluation.generalisation.unwrap();
+    eprintln!(
+        "asmg 6+2: matching HD {:.2} CD {:.2}, generalisation HD {:.2}, specificity HD {:.2} mm",
+        matching.hd.mean, matching.cd.mean, generalisation.hd.mean, evaluation.specificity.hd.mean
+    );
+    assert!(matching.hd.mean > 0.0 && matching.hd.mean < 40.0);
+    assert!(generalisation.hd.mean > 0.0 && generalisation.hd.mean < 60.0);
+    assert_eq!(evaluation.per_item.specificity.len(), 6);
+
+    let sample = model
+        .sample(&mut draw_rng(5, 0), Sampling::Gaussian)
+        .unwrap();
+    assert_eq!(sample.faces, atlas.faces);
+    let volume = volume_ml(&sample);
+    assert!(volume > 10.0 && volume < 500.0, "{volume} ml");
+
+    let bytes = outcome.model.to_bytes().unwrap();
+    let back = StoredModel::from_bytes(&bytes).unwrap();
+    let AnyModel::Asmg(back_model) = &back.model else {
+        panic!("the stored model is asmg")
+    };
+    let again = back_model
+        .sample(&mut draw_rng(5, 0), Sampling::Gaussian)
+        .unwrap();
+    for (a, b) in sample.vertices.iter().zip(&again.vertices) {
+        for d in 0..3 {
+            assert!((a[d] - b[d]).abs() < 1e-4, "{a:?} vs {b:?}");
+        }
+    }
+    let r = back_model.reconstruct(&holdout[0]).unwrap();
+    assert_eq!(r.normalised.len(), atlas.vertex_count());
+    assert_eq!(r.aligned_input.len(), holdout[0].vertex_count());
+    assert_eq!(r.mesh.faces, atlas.faces);
+}
+
+/// Cancels at the first report of the graph network's training.
+struct CancelInGraphStage(usize);
+
+impl Progress for CancelInGraphStage {
+    fn report(&mut self, update: ProgressUpdate) -> Result<(), Cancelled> {
+        if update.stage == "graph_vae" {
+            self.0 += 1;
+            return Err(Cancelled);
+        }
+        Ok(())
+    }
+}
+
+#[test]
+fn cancellation_stops_training_and_bad_input_is_refused() {
+    let meshes = phantoms(4);
+    let mut cancel = CancelInGraphStage(0);
+    let err = fit(&meshes, &[], &quick(), None, 1, &mut cancel).unwrap_err();
+    assert!(matches!(err, ModelError::Cancelled(_)), "{err:?}");
+    assert_eq!(cancel.0, 1);
+    let err = fit(&meshes[..2], &[], &quick(), None, 1, &mut Silent).unwrap_err();
+    assert!(matches!(err, ModelError::TooFewMeshes { found: 2, .. }));
+    let bad = AsmgParams {
+        gamma: -1.0,
+        ..quick()
+    };
+    let err = fit(&meshes, &[], &bad, None, 1, &mut Silent).unwrap_err();
+    assert!(matches!(err, ModelError::InvalidParams { ref field, .. } if field == "gamma"));
+    let given = AsmgParams {
+        atlas: "m-7".into(),
+        ..quick()
+    };
+    let err = fit(&meshes, &[], &given, None, 1, &mut Silent).unwrap_err();
+    assert!(matches!(err, ModelError::InvalidParams { ref field, .. } if field == "atlas"));
+}

@@ -1,0 +1,329 @@
+//! A fitted ASMG model: the learned atlas, the graph VAE Ψ that embeds vertices, and the
+//! beta-VAE generator of atlas-domain shapes, with the settings that tie them together.
+//!
+//! The networks are stored as burn records (bytes) and rebuilt once, on first use, after a
+//! model is read back. Sampling draws z ~ N(0, I) and decodes it to a mesh with the atlas
+//! connectivity (mm). Reconstruction of an unseen mesh: simplify, register rigidly to the
+//! alignment reference, Ψ → attention Φ → h → smoothed h' → encoder mean → decoder.
+
+use std::sync::OnceLock;
+
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use serde::{Deserialize, Serialize};
+
+use super::embeddings::Embeddings;
+use super::learn::{ShapeInput, normalise_shapes};
+use super::params::AsmgParams;
+use super::smoothing::Smoother;
+use crate::geometry::pca::Sampling;
+use crate::mesh::Mesh;
+use crate::mesh::simplify::simplify;
+use crate::models::alignment::{self, AlignmentParams};
+use crate::models::{ModelError, Reconstruction, ShapeModel};
+use crate::nn::{
+    BetaVaeConfig, GraphSample, GraphVaeConfig, NnError, TrainedBetaVae, TrainedGraphVae,
+};
+
+/// Latent coordinates are kept within ±this (in standard deviations), as RSMP clips its
+/// mode weights at 3√λ.
+pub const LATENT_CLIP: f64 = 3.0;
+
+/// Sizes of the two networks, enough to rebuild them from their weights.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NetworkSizes {
+    /// Ψ: node feature width (3 or 6).
+    pub graph_d_x: usize,
+    /// Ψ: hidden widths.
+    pub graph_hidden: Vec<usize>,
+    /// Ψ: embedding width `d_z`.
+    pub graph_d_z: usize,
+    /// Ψ: FeaStConv heads.
+    pub graph_heads: usize,
+    /// Generator: input width `3·N_μ`.
+    pub vae_d_in: usize,
+    /// Generator: hidden widths.
+    pub vae_hidden: Vec<usize>,
+    /// Generator: latent width `L`.
+    pub vae_latent: usize,
+}
+
+impl NetworkSizes {
+    /// The sizes of the given configurations.
+    pub fn of(graph: &GraphVaeConfig, vae: &BetaVaeConfig) -> Self {
+        Self {
+            graph_d_x: graph.d_x,
+            graph_hidden: graph.hidden.clone(),
+            graph_d_z: graph.d_z,
+            graph_heads: graph.heads,
+            vae_d_in: vae.d_in,
+            vae_hidden: vae.hidden.clone(),
+            vae_latent: vae.latent,
+        }
+    }
+
+    fn graph(&self) -> GraphVaeConfig {
+        GraphVaeConfig::new()
+            .with_d_x(self.graph_d_x)
+            .with_hidden(self.graph_hidden.clone())
+            .with_d_z(self.graph_d_z)
+            .with_heads(self.graph_heads)
+    }
+
+    fn vae(&self) -> BetaVaeConfig {
+        BetaVaeConfig::new(self.vae_d_in)
+            .with_hidden(self.vae_hidden.clone())
+            .with_latent(self.vae_latent)
+    }
+}
+
+/// The networks and what is derived from them, ready to use.
+#[derive(Debug, Clone)]
+pub struct Networks {
+    /// Ψ.
+    pub graph: TrainedGraphVae,
+    /// The generator.
+    pub generator: TrainedBetaVae,
+    /// `Z_μ = Ψ(X_μ)` of the final atlas, `[N_μ, d_z]`.
+    pub atlas_embeddings: Embeddings,
+    /// Smoothing on the atlas connectivity (factored once).
+    pub smoother: Smoother,
+}
+
+/// A fitted ASMG model.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct AsmgModel {
+    /// The learned atlas (mm, model frame): the connectivity of every output.
+    pub atlas: Mesh,
+    /// The mesh every input is rigidly registered to (simplified, mm, model frame).
+    pub reference: Mesh,
+    /// Registration settings, reused for unseen meshes.
+    pub alignment: AlignmentParams,
+    /// The fit's parameters (features, vertex budget, attention and smoothing settings).
+    pub params: AsmgParams,
+    /// Sizes of Ψ and of the generator.
+    pub sizes: NetworkSizes,
+    /// Ψ's weights (burn record).
+    pub graph_weights: Vec<u8>,
+    /// The generator's weights (burn record).
+    pub generator_weights: Vec<u8>,
+    /// The networks once built (boxed: they are large and most copies of a model never
+    /// build them).
+    #[serde(skip)]
+    networks: OnceLock<Box<Networks>>,
+}
+
+/// A network error as a model error.
+pub(crate) fn nn_error(e: NnError) -> ModelError {
+    match e {
+        NnError::Cancelled => ModelError::Cancelled(crate::models::progress::Cancelled),
+        NnError::Diverged { .. } => ModelError::Numerical(e.to_string()),
+        NnError::Weights(_) => ModelError::Corrupt(e.to_string()),
+        other => ModelError::InvalidInput(other.to_string()),
+    }
+}
+
+/// A mesh simplified to at most `max_vertices` vertices (unchanged when it has fewer).
+pub(crate) fn simplified(mesh: &Mesh, max_vertices: usize) -> Result<Mesh, ModelError> {
+    simplify(mesh, max_vertices)
+        .map(|s| s.mesh)
+        .map_err(|e| ModelError::InvalidInput(format!("simplification failed: {e}")))
+}
+
+/// A mesh registered rigidly to `reference`: the simplified mesh in the model frame (for the
+/// networks) and all original vertices in the model frame (mm).
+pub(crate) fn align(
+    reference: &Mesh,
+    mesh: &Mesh,
+    alignment: &AlignmentParams,
+    max_vertices: usize,
+) -> Result<(Mesh, Vec<[f64; 3]>), ModelError> {
+    let small = simplified(mesh, max_vertices)?;
+    let cpd = alignment::register(&reference.vertices, &small.vertices, alignment)?;
+    let back = |v: &[[f64; 3]]| -> Vec<[f64; 3]> {
+        v.iter().map(|p| cpd.transform.inverse_apply(*p)).collect()
+    };
+    let aligned_small = Mesh::new(back(&small.vertices), small.faces.clone());
+    Ok((aligned_small, back(&mesh.vertices)))
+}
+
+/// Flattened `[x0, y0, z0, x1, …]` in `f32`.
+pub(crate) fn flatten_f32(shape: &[[f64; 3]]) -> Vec<f32> {
+    shape.iter().flat_map(|p| p.map(|c| c as f32)).collect()
+}
+
+/// Ψ's embeddings of one (aligned) mesh.
+pub(crate) fn embed_mesh(
+    graph: &TrainedGraphVae,
+    mesh: &Mesh,
+    params: &AsmgParams,
+) -> Result<Embeddings, ModelError> {
+    let sample = GraphSample::from_mesh(mesh, params.features.features());
+    let z = graph.embed(&sample).map_err(nn_error)?;
+    Embeddings::new(mesh.vertex_count(), graph.config.d_z, z)
+}
+
+/// Ψ's embeddings of many graphs, `chunk` graphs per forward pass.
+pub(crate) fn embeddings_of(
+    graph: &TrainedGraphVae,
+    samples: &[GraphSample],
+    chunk: usize,
+) -> Result<Vec<Embeddings>, ModelError> {
+    let mut out = Vec::with_capacity(samples.len());
+    for part in samples.chunks(chunk.max(1)) {
+        let blocks = graph.embed_many(part).map_err(nn_error)?;
+        for (sample, z) in part.iter().zip(blocks) {
+            out.push(Embeddings::new(sample.vertex_count(), graph.config.d_z, z)?);
+        }
+    }
+    Ok(out)
+}
+
+impl AsmgModel {
+    /// A model from its parts; `networks`, when given, are the trained networks the weights
+    /// came from (saves rebuilding them).
+    pub fn new(
+        atlas: Mesh,
+        reference: Mesh,
+        params: AsmgParams,
+        sizes: NetworkSizes,
+        weights: (Vec<u8>, Vec<u8>),
+        networks: Option<Networks>,
+    ) -> Self {
+        let model = Self {
+            atlas,
+            reference,
+            alignment: params.alignment(),
+            params,
+            sizes,
+            graph_weights: weights.0,
+            generator_weights: weights.1,
+            networks: OnceLock::new(),
+        };
+        if let Some(n) = networks {
+            let _ = model.networks.set(Box::new(n));
+        }
+        model
+    }
+
+    /// The networks, rebuilt from the stored weights on first use.
+    pub fn networks(&self) -> Result<&Networks, ModelError> {
+        if let Some(n) = self.networks.get() {
+            return Ok(n.as_ref());
+        }
+        let graph = TrainedGraphVae::from_bytes(&self.sizes.graph(), &self.graph_weights)
+            .map_err(nn_error)?;
+        let generator = TrainedBetaVae::from_bytes(&self.sizes.vae(), &self.generator_weights)
+            .map_err(nn_error)?;
+        let built = Self::derive(graph, generator, &self.atlas, &self.params)?;
+        // Another thread may have won the race; either value is the same.
+        let _ = self.networks.set(Box::new(built));
+        self.networks
+            .get()
+            .map(Box::as_ref)
+            .ok_or_else(|| ModelError::Numerical("the networks could not be kept".to_owned()))
+    }
+
+    /// The networks with the atlas embeddings and the smoother of `atlas`.
+    pub fn derive(
+        graph: TrainedGraphVae,
+        generator: TrainedBetaVae,
+        atlas: &Mesh,
+        params: &AsmgParams,
+    ) -> Result<Networks, ModelError> {
+        let atlas_embeddings = embed_mesh(&graph, atlas, params)?;
+        let smoother = Smoother::new(atlas, params.smoothing())?;
+        Ok(Networks {
+            graph,
+            generator,
+            atlas_embeddings,
+            smoother,
+        })
+    }
+
+    /// The smoothed normalised shape `h'` (`[N_μ, 3]`, mm) of a mesh already in the model
+    /// frame and within the vertex budget.
+    pub fn normalise_aligned(&self, aligned: &Mesh) -> Result<Vec<[f64; 3]>, ModelError> {
+        let nets = self.networks()?;
+        let embeddings = embed_mesh(&nets.graph, aligned, &self.params)?;
+        let input = ShapeInput {
+            embeddings: &embeddings,
+            positions: &aligned.vertices,
+        };
+        let mut out = normalise_shapes(
+            &self.atlas,
+            &nets.atlas_embeddings,
+            &[input],
+            self.params.temperature(),
+            &nets.smoother,
+        )?;
+        out.smoothed
+            .pop()
+            .ok_or_else(|| ModelError::Numerical("no normalised shape".to_owned()))
+    }
+
+    /// A mesh with the atlas connectivity from flattened coordinates (mm).
+    fn to_mesh(&self, flat: &[f32]) -> Mesh {
+        let vertices = flat
+            .chunks_exact(3)
+            .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
+            .collect();
+        Mesh::new(vertices, self.atlas.faces.clone())
+    }
+
+    /// Decodes latent codes `[L]` to meshes.
+    pub fn decode(&self, latents: &[Vec<f32>]) -> Result<Vec<Mesh>, ModelError> {
+        let nets = self.networks()?;
+        let shapes = nets.generator.decode(latents).map_err(nn_error)?;
+        Ok(shapes.iter().map(|s| self.to_mesh(s)).collect())
+    }
+}
+
+/// One latent coordinate: standard normal clipped to ±[`LATENT_CLIP`], or uniform on it.
+fn latent_coordinate(rng: &mut ChaCha8Rng, sampling: Sampling) -> f32 {
+    let v: f64 = match sampling {
+        Sampling::Gaussian => rng.sample::<f64, _>(StandardNormal),
+        Sampling::Uniform => rng.random_range(-LATENT_CLIP..=LATENT_CLIP),
+    };
+    v.clamp(-LATENT_CLIP, LATENT_CLIP) as f32
+}
+
+impl ShapeModel for AsmgModel {
+    fn atlas(&self) -> &Mesh {
+        &self.atlas
+    }
+
+    fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Mesh, ModelError> {
+        let z: Vec<f32> = (0..self.sizes.vae_latent)
+            .map(|_| latent_coordinate(rng, sampling))
+            .collect();
+        self.decode(&[z])?
+            .pop()
+            .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))
+    }
+
+    fn reconstruct(&self, mesh: &Mesh) -> Result<Reconstruction, ModelError> {
+        let (aligned, aligned_input) = align(
+            &self.reference,
+            mesh,
+            &self.alignment,
+            self.params.max_vertices,
+        )?;
+        let normalised = self.normalise_aligned(&aligned)?;
+        let nets = self.networks()?;
+        let flat = nets
+            .generator
+            .reconstruct(&[flatten_f32(&normalised)])
+            .map_err(nn_error)?;
+        let mesh = flat
+            .first()
+            .map(|s| self.to_mesh(s))
+            .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))?;
+        Ok(Reconstruction {
+            mesh,
+            normalised,
+            aligned_input,
+        })
+    }
+}

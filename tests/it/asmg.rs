@@ -1,0 +1,190 @@
+//! The `asmg` model type end to end: tiny LV phantoms → asmg job → model with an atlas →
+//! cohort → member meshes with the atlas connectivity.
+
+use std::time::Duration;
+
+use cohortforge::mesh::phantom::{self, Family};
+use cohortforge::mesh::simplify::simplify;
+use cohortforge::mesh::validate::{IngestOptions, ingest};
+use cohortforge::mesh::{Format, io};
+use reqwest::StatusCode;
+use reqwest::multipart::{Form, Part};
+use serde_json::{Value, json};
+
+use crate::support::{TestServer, expect_json, expect_problem};
+
+/// Vertices of each uploaded phantom.
+const PHANTOM_VERTICES: usize = 300;
+/// Requested atlas resolution.
+const ATLAS_VERTICES: usize = 200;
+
+/// Few epochs and cheap registration: the test checks the plumbing, not the quality.
+fn tiny_params() -> Value {
+    json!({
+        "features": "hybrid",
+        "atlas_vertices": ATLAS_VERTICES,
+        "max_vertices": 400,
+        "epochs_graph": 2,
+        "epochs_vae": 20,
+        "cpd_max_iterations": 30,
+        "max_em_steps": 3
+    })
+}
+
+async fn upload_small_phantoms(s: &TestServer, count: usize, seed: u64) -> String {
+    let dataset = s.dataset("tiny phantoms", "lv").await;
+    let mut form = Form::new();
+    for p in phantom::generate(Family::Lv, count, seed) {
+        let small = simplify(&p.mesh, PHANTOM_VERTICES).unwrap().mesh;
+        form = form.part(
+            "file",
+            Part::bytes(io::write(&small, Format::Stl)).file_name(format!("{}.stl", p.name)),
+        );
+    }
+    let url = s.url(&format!("/v1/datasets/{dataset}/meshes"));
+    expect_json(
+        s.client.post(url).multipart(form).send().await.unwrap(),
+        StatusCode::CREATED,
+    )
+    .await;
+    dataset
+}
+
+async fn get(s: &TestServer, path: &str) -> Value {
+    expect_json(
+        s.client.get(s.url(path)).send().await.unwrap(),
+        StatusCode::OK,
+    )
+    .await
+}
+
+async fn wait_for(s: &TestServer, job: &str, timeout: Duration) -> (Value, Vec<Value>) {
+    let started = std::time::Instant::now();
+    let mut seen = Vec::new();
+    loop {
+        let body = get(s, &format!("/v1/jobs/{job}")).await;
+        if body["status"] == "running" {
+            seen.push(body["progress"].clone());
+        }
+        if matches!(
+            body["status"].as_str(),
+            Some("succeeded" | "failed" | "cancelled")
+        ) {
+            return (body, seen);
+        }
+        assert!(
+            started.elapsed() < timeout,
+            "job did not finish in time: {body}"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn tiny_phantoms_to_asmg_model_to_cohort() {
+    let s = TestServer::start().await;
+    let dataset = upload_small_phantoms(&s, 12, 5).await;
+    let body = json!({"dataset_id": dataset, "model_type": "asmg", "params": tiny_params(), "seed": 2, "holdout_fraction": 0.2});
+    let job = expect_json(
+        s.client
+            .post(s.url("/v1/jobs"))
+            .json(&body)
+            .send()
+            .await
+            .unwrap(),
+        StatusCode::ACCEPTED,
+    )
+    .await;
+    let (done, seen) = wait_for(&s, job["id"].as_str().unwrap(), Duration::from_secs(300)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let losses: Vec<f64> = seen
+        .iter()
+        .filter(|p| p["stage"] == "graph_vae" || p["stage"] == "generator")
+        .filter_map(|p| p["loss"].as_f64())
+        .collect();
+    assert!(
+        losses.iter().all(|l| l.is_finite()),
+        "losses seen: {losses:?}"
+    );
+
+    let model_id = done["model_id"].as_str().unwrap();
+    let model = get(&s, &format!("/v1/models/{model_id}")).await;
+    assert_eq!(model["model_type"], "asmg");
+    assert_eq!(model["params"]["features"], "hybrid");
+    assert_eq!(model["params"]["gamma"], 1.0);
+    let atlas_vertices = model["atlas"]["vertex_count"].as_u64().unwrap() as usize;
+    assert!(
+        (100..=ATLAS_VERTICES + ATLAS_VERTICES / 4).contains(&atlas_vertices),
+        "atlas of {atlas_vertices} vertices"
+    );
+    for metric in ["generalisation", "specificity", "matching"] {
+        let hd = model["evaluation"][metric]["hd"]["mean"]
+            .as_f64()
+            .unwrap_or(-1.0);
+        assert!(hd > 0.0 && hd < 100.0, "{metric} HD = {hd}");
+    }
+
+    let url = s.url(&format!("/v1/models/{model_id}/cohorts"));
+    let request = json!({"size": 6, "seed": 3});
+    let cohort = expect_json(
+        s.client.post(&url).json(&request).send().await.unwrap(),
+        StatusCode::CREATED,
+    )
+    .await;
+    assert_eq!(cohort["members"].as_array().unwrap().len(), 6);
+    let cohort_id = cohort["id"].as_str().unwrap();
+    for index in [0, 5] {
+        let bytes = s
+            .client
+            .get(s.url(&format!(
+                "/v1/cohorts/{cohort_id}/members/{index}/file?format=obj"
+            )))
+            .send()
+            .await
+            .unwrap()
+            .bytes()
+            .await
+            .unwrap();
+        let member = io::read(&bytes, Format::Obj, &Default::default()).unwrap();
+        assert_eq!(member.vertex_count(), atlas_vertices);
+        let parsed = ingest(&bytes, Format::Obj, &IngestOptions::default()).unwrap();
+        assert!(parsed.summary.vertex_count <= atlas_vertices);
+    }
+    let again = expect_json(
+        s.client.post(&url).json(&request).send().await.unwrap(),
+        StatusCode::CREATED,
+    )
+    .await;
+    assert_eq!(
+        cohort["members"][2]["biomarkers"], again["members"][2]["biomarkers"],
+        "the same seed must give the same cohort"
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn asmg_params_are_checked_at_submission() {
+    let s = TestServer::start().await;
+    let dataset = upload_small_phantoms(&s, 4, 1).await;
+    for (params, field) in [
+        (json!({"latent_dim": 0}), "latent_dim"),
+        (json!({"features": "colour"}), "features"),
+        (json!({"epoch": 3}), "epoch"),
+        (json!({"atlas": "no-such-mesh"}), "atlas"),
+    ] {
+        let body = json!({"dataset_id": dataset, "model_type": "asmg", "params": params});
+        let response = s
+            .client
+            .post(s.url("/v1/jobs"))
+            .json(&body)
+            .send()
+            .await
+            .unwrap();
+        let problem = expect_problem(
+            response,
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "request.invalid_field",
+        )
+        .await;
+        assert_eq!(problem["field"], format!("params.{field}"), "{problem}");
+    }
+}
