@@ -188,6 +188,20 @@ pub struct StageTiming {
     pub seconds: f64,
 }
 
+impl StageTiming {
+    /// The wall-clock time of every stage entered so far, in order.
+    pub fn all(stages: &progress::Stages) -> Vec<Self> {
+        stages
+            .seconds
+            .iter()
+            .map(|(stage, seconds)| Self {
+                stage: (*stage).to_owned(),
+                seconds: *seconds,
+            })
+            .collect()
+    }
+}
+
 /// Everything reported about a fitted model besides its parameters.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ModelSummary {

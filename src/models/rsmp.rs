@@ -267,14 +267,7 @@ pub fn fit(
         n_modes: Some(model.pca.n_modes()),
         training_count: training.len(),
         holdout_count: holdout.len(),
-        timings: stages
-            .seconds
-            .iter()
-            .map(|(s, t)| StageTiming {
-                stage: (*s).to_owned(),
-                seconds: *t,
-            })
-            .collect(),
+        timings: StageTiming::all(&stages),
         losses: Vec::new(),
     };
     let model = StoredModel {

@@ -283,14 +283,7 @@ pub fn fit(
         n_modes: None,
         training_count: training.len(),
         holdout_count: holdout.len(),
-        timings: stages
-            .seconds
-            .iter()
-            .map(|(s, t)| StageTiming {
-                stage: (*s).to_owned(),
-                seconds: *t,
-            })
-            .collect(),
+        timings: StageTiming::all(&stages),
         losses,
     };
     Ok(FitOutcome {
