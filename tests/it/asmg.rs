@@ -123,6 +123,9 @@ async fn tiny_phantoms_to_asmg_model_to_cohort() {
             .unwrap_or(-1.0);
         assert!(hd > 0.0 && hd < 100.0, "{metric} HD = {hd}");
     }
+    // The report page: three distance distributions and the two networks' loss curves.
+    let page = format!("/v1/models/{model_id}/report.html");
+    assert_eq!(crate::reports::plots_on_page(&s, &page).await, 5);
 
     let url = s.url(&format!("/v1/models/{model_id}/cohorts"));
     let request = json!({"size": 6, "seed": 3});
