@@ -7,6 +7,8 @@
 
 use std::time::Instant;
 
+use cohortforge::mesh::measures::volume_ml;
+
 use cohortforge::eval::biomarkers::Biomarkers;
 use cohortforge::eval::privacy::CorrespondedShapes;
 use cohortforge::geometry::Sampling;
@@ -41,6 +43,19 @@ fn main() {
     );
     let stored = outcome.model;
     let model = stored.model.shape_model();
+    let faces = model.atlas().faces.clone();
+    let h_volumes: Vec<f64> = stored
+        .training
+        .normalised_f64()
+        .into_iter()
+        .map(|h| volume_ml(&cohortforge::mesh::Mesh::new(h, faces.clone())))
+        .collect();
+    let raw: f64 = meshes.iter().map(volume_ml).sum::<f64>() / meshes.len() as f64;
+    println!(
+        "training volume: meshes {raw:.1} ml, normalised shapes {:.1} ml, atlas {:.1} ml",
+        h_volumes.iter().sum::<f64>() / h_volumes.len() as f64,
+        volume_ml(model.atlas())
+    );
 
     let started = Instant::now();
     for draw in 0..size as u64 {
@@ -69,6 +84,18 @@ fn main() {
     let (members, report) =
         sample_cohort(model, &outcome.reference, &training, &spec).expect("cohort");
     let full = started.elapsed().as_secs_f64();
+    let volume = |name: &str| {
+        report
+            .biomarkers
+            .get(name)
+            .map(|b| (b.reference.mean, b.synthetic.mean))
+    };
+    if let Some((training, cohort)) = volume("volume_ml") {
+        println!(
+            "volume_ml: training mean {training:.1}, cohort mean {cohort:.1}; joint acceptance A^r {:.3} A^M {:.3} A^mean {:.3}",
+            report.acceptance.range, report.acceptance.mode, report.acceptance.mean
+        );
+    }
     println!(
         "{size} members: draws + biomarkers {plain:.2} s ({:.0}/s, one thread); full cohort {full:.2} s ({:.0}/s); {} near copies (threshold {:.2} mm)",
         size as f64 / plain,
