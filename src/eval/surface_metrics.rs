@@ -3,7 +3,9 @@
 //! because they do not depend on how finely the shapes are sampled.
 
 use super::EvalError;
-use super::metrics::{PairedDistances, paired_with};
+use std::collections::{BTreeMap, BTreeSet};
+
+use super::metrics::{PairedDistances, paired_with, parallel_map};
 use crate::geometry::bvh::TriangleBvh;
 use crate::geometry::distance::point_to_surface_distances;
 
@@ -27,6 +29,47 @@ pub fn paired_point_to_surface(
         let h_bvh = TriangleBvh::new(h.vertices, h.faces)?;
         Ok(point_to_surface_distances(
             g.vertices, &g_bvh, h.vertices, &h_bvh,
+        ))
+    })
+}
+
+/// Point-to-surface distances of each sample (`g`) to the training surface
+/// `training[nearest[i]]` (`g'`): every training surface used is indexed once, however many
+/// samples it is nearest to.
+pub fn point_to_surface_to_nearest(
+    samples: &[Surface<'_>],
+    training: &[Surface<'_>],
+    nearest: &[usize],
+) -> Result<PairedDistances, EvalError> {
+    let used: Vec<usize> = nearest
+        .iter()
+        .copied()
+        .collect::<BTreeSet<usize>>()
+        .into_iter()
+        .collect();
+    let built = parallel_map(&used, |&k| match training.get(k) {
+        Some(t) => TriangleBvh::new(t.vertices, t.faces).map_err(EvalError::from),
+        None => Err(EvalError::DimensionMismatch {
+            what: "training surfaces",
+            expected: k + 1,
+            found: training.len(),
+        }),
+    });
+    let mut surfaces = BTreeMap::new();
+    for (k, bvh) in used.into_iter().zip(built) {
+        surfaces.insert(k, bvh?);
+    }
+    paired_with(samples, nearest, |g, k| {
+        let (Some(h), Some(h_bvh)) = (training.get(*k), surfaces.get(k)) else {
+            return Err(EvalError::DimensionMismatch {
+                what: "training surfaces",
+                expected: k + 1,
+                found: training.len(),
+            });
+        };
+        let g_bvh = TriangleBvh::new(g.vertices, g.faces)?;
+        Ok(point_to_surface_distances(
+            g.vertices, &g_bvh, h.vertices, h_bvh,
         ))
     })
 }
@@ -75,6 +118,28 @@ mod tests {
         );
         let v = crate::geometry::distance::surface_distances(&coarse_v, &fine_v).unwrap();
         assert!(v.ed_star > 0.5, "{v:?}");
+    }
+
+    #[test]
+    fn nearest_surfaces_match_the_paired_distances() {
+        let v0 = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let v1 = [[0.0, 0.0, 2.0], [1.0, 0.0, 2.0], [0.0, 1.0, 2.0]];
+        let f = [[0, 1, 2]];
+        let (a, b) = (
+            Surface {
+                vertices: &v0,
+                faces: &f,
+            },
+            Surface {
+                vertices: &v1,
+                faces: &f,
+            },
+        );
+        let by_index = point_to_surface_to_nearest(&[a, a, b], &[b, a], &[0, 1, 0]).unwrap();
+        let paired = paired_point_to_surface(&[a, a, b], &[b, a, b]).unwrap();
+        assert_eq!(by_index, paired);
+        assert!((by_index.per_pair[0].ed - 2.0).abs() < 1e-12);
+        assert!(point_to_surface_to_nearest(&[a], &[b], &[3]).is_err());
     }
 
     #[test]

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use super::progress::{Progress, Stages};
 use super::{ModelError, ShapeModel};
 use crate::eval::metrics::{self, DistanceSummary, IndexedShapes};
-use crate::eval::surface_metrics::{Surface, paired_point_to_surface};
+use crate::eval::surface_metrics::{Surface, paired_point_to_surface, point_to_surface_to_nearest};
 use crate::geometry::distance::SurfaceDistances;
 use crate::geometry::pca::Sampling;
 use crate::mesh::Mesh;
@@ -170,17 +170,15 @@ impl SurfaceInputs<'_> {
                 faces: &m.faces,
             })
             .collect();
-        let nearest: Vec<Surface<'_>> = self
-            .closest_training
+        let training: Vec<Surface<'_>> = self
+            .training
             .iter()
-            .map(|&k| {
-                let faces = self.training_faces.get(k).copied().unwrap_or(&[]);
-                let vertices = self.training.get(k).map_or(&[][..], |v| v.as_slice());
-                Surface { vertices, faces }
-            })
+            .zip(self.training_faces)
+            .map(|(vertices, faces)| Surface { vertices, faces })
             .collect();
         let samples: Vec<Surface<'_>> = self.generated.iter().map(of_mesh).collect();
-        let specificity = paired_point_to_surface(&samples, &nearest)?.summary;
+        let specificity =
+            point_to_surface_to_nearest(&samples, &training, self.closest_training)?.summary;
         if self.holdout.is_empty() {
             return Ok(SurfaceEvaluation {
                 generalisation: None,
