@@ -61,8 +61,8 @@ pub struct Specificity {
 /// Vertex sets with their k-d trees, built once and compared many times.
 #[derive(Debug)]
 pub struct IndexedShapes<'a> {
-    pub(crate) shapes: Vec<&'a [[f64; 3]]>,
-    pub(crate) indices: Vec<PointCloudIndex>,
+    shapes: Vec<&'a [[f64; 3]]>,
+    indices: Vec<PointCloudIndex>,
 }
 
 impl<'a> IndexedShapes<'a> {
