@@ -15,6 +15,8 @@ pub const LINE_INTERVAL: Duration = Duration::from_secs(2);
 struct EpochTrack {
     stage: &'static str,
     count: u64,
+    /// The step of the latest report: the monitors repeat an epoch's loss after every batch.
+    step: u64,
     first: Instant,
     last: Instant,
 }
@@ -26,7 +28,7 @@ pub struct EpochTiming {
     pub stage: String,
     /// Loss reports (epochs) seen.
     pub epochs: u64,
-    /// Mean seconds between consecutive loss reports.
+    /// Mean seconds between the first reports of consecutive epochs.
     pub seconds_per_epoch: f64,
 }
 
@@ -64,15 +66,18 @@ impl StderrProgress {
             .collect()
     }
 
-    fn track_epoch(&mut self, stage: &'static str, now: Instant) {
+    fn track_epoch(&mut self, stage: &'static str, step: u64, now: Instant) {
         match self.epochs.iter_mut().find(|t| t.stage == stage) {
+            Some(track) if track.step == step => {}
             Some(track) => {
                 track.count += 1;
+                track.step = step;
                 track.last = now;
             }
             None => self.epochs.push(EpochTrack {
                 stage,
                 count: 1,
+                step,
                 first: now,
                 last: now,
             }),
@@ -84,7 +89,7 @@ impl Progress for StderrProgress {
     fn report(&mut self, update: ProgressUpdate) -> Result<(), Cancelled> {
         let now = Instant::now();
         if update.loss.is_some() {
-            self.track_epoch(update.stage, now);
+            self.track_epoch(update.stage, update.step, now);
         }
         let new_stage = self.stage != Some(update.stage);
         let stage_done = update.step == update.total;
@@ -129,9 +134,12 @@ mod tests {
         let mut progress = StderrProgress::new("test");
         progress.report(update("alignment", 1, None)).unwrap();
         for step in 1..=3 {
-            progress
-                .report(update("training", step, Some(0.5)))
-                .unwrap();
+            // Batches repeat the latest epoch's loss with the same step.
+            for _batch in 0..4 {
+                progress
+                    .report(update("training", step, Some(0.5)))
+                    .unwrap();
+            }
             std::thread::sleep(Duration::from_millis(10));
         }
         let timings = progress.epoch_timings();

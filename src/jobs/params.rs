@@ -120,7 +120,7 @@ mod tests {
     fn asmg_params_fill_in_defaults_and_reject_bad_fields() {
         let p = ModelParams::parse(ModelType::Asmg, &serde_json::Value::Null).unwrap();
         let json = p.to_json();
-        assert_eq!(json["features"], "spatial");
+        assert_eq!(json["features"], "hybrid");
         assert_eq!(json["atlas"], "auto");
         assert_eq!(json["latent_dim"], 16);
         assert_eq!(json["smoothing"], "displacement");

@@ -1,7 +1,7 @@
 //! The beta-VAE generator of SPEC §2.6 (thesis 4.2.2, eq. 4.14): fully connected encoder
 //! `3·N_μ → 512 → 256 → 768 → 128 → L` (mean and log-variance heads), LeakyReLU after every
-//! hidden layer, mirrored decoder. Shapes are flattened `[x0, y0, z0, x1, …]` in mm and mapped
-//! to [0, 1] coordinates by the stored [`CoordinateScaling`].
+//! hidden layer, mirrored decoder. Shapes are flattened `[x0, y0, z0, x1, …]` in mm and
+//! standardised by the stored [`ShapeScaling`] (mean shape and spread).
 
 use burn::config::Config;
 use burn::module::{Module, RunningState};
@@ -51,12 +51,7 @@ impl BetaVaeConfig {
     }
 
     /// A beta-VAE with weights drawn from `rng`, on `device`.
-    pub fn init(
-        &self,
-        scaling: CoordinateScaling,
-        rng: &mut ChaCha8Rng,
-        device: &Device,
-    ) -> BetaVae {
+    pub fn init(&self, scaling: ShapeScaling, rng: &mut ChaCha8Rng, device: &Device) -> BetaVae {
         let mut stack = |widths: Vec<usize>| -> Vec<Dense> {
             widths
                 .windows(2)
@@ -85,63 +80,76 @@ impl BetaVaeConfig {
             log_var,
             decoder,
             output,
-            coordinate_min: running.state(scaling.min.to_vec(), device),
-            coordinate_range: running.state(vec![scaling.range], device),
+            shape_mean: running.state(scaling.mean, device),
+            shape_spread: running.state(vec![scaling.spread], device),
             leaky_slope: self.leaky_slope,
         })
     }
 }
 
-/// Maps coordinates (mm) to [0, 1]: `(v − min_axis) / range`, one range for all axes so the
-/// aspect ratio is kept.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CoordinateScaling {
-    /// Smallest coordinate per axis over the training shapes, mm.
-    pub min: [f32; 3],
-    /// Largest extent over the axes, mm.
-    pub range: f32,
+/// Maps flattened shapes (mm) to network units: `(v − mean shape) / spread`, with `spread`
+/// the root-mean-square deviation of all coordinates from the mean shape. Centring on the
+/// mean shape lets the encoder see the variation between shapes: on a [0, 1] bounding-box
+/// scale (thesis) the shapes differed by a few hundredths and the encoder's means came
+/// out the same for every shape (`cargo run --release --example asmg_stages`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShapeScaling {
+    /// The mean training shape, `[3·N_μ]`, mm.
+    pub mean: Vec<f32>,
+    /// RMS deviation of a coordinate from the mean shape, mm (> 0).
+    pub spread: f32,
 }
 
-impl CoordinateScaling {
-    /// The identity map.
-    pub const IDENTITY: Self = Self {
-        min: [0.0; 3],
-        range: 1.0,
-    };
+impl ShapeScaling {
+    /// The identity map for shapes of `width` values.
+    pub fn identity(width: usize) -> Self {
+        Self {
+            mean: vec![0.0; width],
+            spread: 1.0,
+        }
+    }
 
-    /// The bounding box of all training shapes (flattened `[x, y, z, …]`).
+    /// The mean shape and spread of the training shapes (equally long, flattened
+    /// `[x, y, z, …]`); a spread of zero (one shape, or identical ones) becomes 1 mm.
     pub fn fit(shapes: &[Vec<f32>]) -> Self {
-        let mut lo = [f32::INFINITY; 3];
-        let mut hi = [f32::NEG_INFINITY; 3];
+        let width = shapes.first().map_or(0, Vec::len);
+        let n = shapes.len().max(1) as f64;
+        let mut mean = vec![0.0f64; width];
         for shape in shapes {
-            for p in shape.chunks_exact(3) {
-                for d in 0..3 {
-                    lo[d] = lo[d].min(p[d]);
-                    hi[d] = hi[d].max(p[d]);
-                }
+            for (m, v) in mean.iter_mut().zip(shape) {
+                *m += f64::from(*v) / n;
             }
         }
-        if lo.iter().any(|v| !v.is_finite()) {
-            return Self::IDENTITY;
-        }
-        let range = (0..3).map(|d| hi[d] - lo[d]).fold(0.0f32, f32::max);
+        let squares: f64 = shapes
+            .iter()
+            .flat_map(|s| {
+                s.iter()
+                    .zip(&mean)
+                    .map(|(v, m)| (f64::from(*v) - m).powi(2))
+            })
+            .sum();
+        let spread = (squares / (n * width.max(1) as f64)).sqrt() as f32;
         Self {
-            min: lo,
-            range: if range > 0.0 { range } else { 1.0 },
+            mean: mean.into_iter().map(|m| m as f32).collect(),
+            spread: if spread.is_finite() && spread > 0.0 {
+                spread
+            } else {
+                1.0
+            },
         }
     }
 
-    /// mm to [0, 1], in place.
+    /// mm to network units, in place.
     pub fn normalise(&self, shape: &mut [f32]) {
-        for (k, v) in shape.iter_mut().enumerate() {
-            *v = (*v - self.min[k % 3]) / self.range;
+        for (v, m) in shape.iter_mut().zip(&self.mean) {
+            *v = (*v - m) / self.spread;
         }
     }
 
-    /// [0, 1] back to mm, in place.
+    /// Network units back to mm, in place.
     pub fn denormalise(&self, shape: &mut [f32]) {
-        for (k, v) in shape.iter_mut().enumerate() {
-            *v = *v * self.range + self.min[k % 3];
+        for (v, m) in shape.iter_mut().zip(&self.mean) {
+            *v = *v * self.spread + m;
         }
     }
 }
@@ -159,10 +167,10 @@ pub struct BetaVae {
     pub decoder: Vec<Dense>,
     /// Last decoder layer back to `3·N_μ`.
     pub output: Dense,
-    /// Coordinate minimum per axis (mm), `[3]`.
-    pub coordinate_min: RunningState<Tensor<1>>,
-    /// Coordinate range (mm), `[1]`.
-    pub coordinate_range: RunningState<Tensor<1>>,
+    /// The mean training shape (mm), `[3·N_μ]`.
+    pub shape_mean: RunningState<Tensor<1>>,
+    /// RMS deviation from the mean shape (mm), `[1]`.
+    pub shape_spread: RunningState<Tensor<1>>,
     /// LeakyReLU negative slope.
     pub leaky_slope: f64,
 }
@@ -186,23 +194,18 @@ impl BetaVae {
         self.output.forward(h)
     }
 
-    /// The coordinate scaling stored with the weights.
-    pub fn scaling(&self) -> CoordinateScaling {
-        let min: Vec<f32> = self
-            .coordinate_min
+    /// The shape scaling stored with the weights.
+    pub fn scaling(&self) -> ShapeScaling {
+        let mean: Vec<f32> = self.shape_mean.value().into_data().iter::<f32>().collect();
+        let spread: Vec<f32> = self
+            .shape_spread
             .value()
             .into_data()
             .iter::<f32>()
             .collect();
-        let range: Vec<f32> = self
-            .coordinate_range
-            .value()
-            .into_data()
-            .iter::<f32>()
-            .collect();
-        CoordinateScaling {
-            min: [0, 1, 2].map(|d| min.get(d).copied().unwrap_or(0.0)),
-            range: range.first().copied().unwrap_or(1.0),
+        ShapeScaling {
+            mean,
+            spread: spread.first().copied().unwrap_or(1.0),
         }
     }
 
@@ -229,27 +232,25 @@ mod tests {
     use crate::nn::init::tensor;
 
     #[test]
-    fn scaling_maps_the_box_to_the_unit_range_and_back() {
-        let shapes = vec![vec![0.0, 10.0, 5.0, 20.0, 12.0, 5.0], vec![10.0, 11.0, 9.0]];
-        let s = CoordinateScaling::fit(&shapes);
-        assert_eq!(s.min, [0.0, 10.0, 5.0]);
-        assert_eq!(s.range, 20.0);
-        let mut v = shapes[0].clone();
+    fn scaling_centres_on_the_mean_shape_and_back() {
+        let shapes = vec![vec![0.0, 10.0, 5.0], vec![2.0, 14.0, 5.0]];
+        let s = ShapeScaling::fit(&shapes);
+        assert_eq!(s.mean, vec![1.0, 12.0, 5.0]);
+        // Deviations ±1, ±2, 0: mean square (1 + 4 + 0 + 1 + 4 + 0) / 6.
+        assert!((s.spread - (10.0f32 / 6.0).sqrt()).abs() < 1e-6);
+        let mut v = shapes[1].clone();
         s.normalise(&mut v);
-        assert_eq!(v, vec![0.0, 0.0, 0.0, 1.0, 0.1, 0.0]);
+        assert!((v[0] - 1.0 / s.spread).abs() < 1e-6 && v[2] == 0.0);
         s.denormalise(&mut v);
-        assert_eq!(v, shapes[0]);
+        assert!(v.iter().zip(&shapes[1]).all(|(a, b)| (a - b).abs() < 1e-5));
+        assert_eq!(ShapeScaling::fit(&shapes[..1]).spread, 1.0);
     }
 
     #[test]
     fn shapes_and_loss_terms() {
         let device = inference_device();
         let config = BetaVaeConfig::new(6).with_hidden(vec![5, 4]).with_latent(2);
-        let model = config.init(
-            CoordinateScaling::IDENTITY,
-            &mut rng(0, STREAM_INIT),
-            &device,
-        );
+        let model = config.init(ShapeScaling::identity(6), &mut rng(0, STREAM_INIT), &device);
         let x = tensor(
             vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.0, 0.1, 0.0, 0.1, 0.0, 0.1],
             [2, 6],

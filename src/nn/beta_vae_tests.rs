@@ -114,3 +114,51 @@ fn bad_input_is_rejected() {
         "nn.invalid_config"
     );
 }
+
+#[test]
+fn a_latent_prior_maps_standard_draws_to_codes() {
+    let prior = LatentPrior {
+        centre: vec![1.0, 2.0],
+        spread: vec![2.0, 0.5],
+    };
+    assert_eq!(prior.code(&[1.0, -2.0]), vec![3.0, 1.0]);
+    assert_eq!(LatentPrior::standard(2).code(&[0.3, -1.0]), vec![0.3, -1.0]);
+}
+
+/// Standard deviation of the largest `x` (the semi-axis `a`) over flattened shapes.
+fn spread_of_semi_axis(shapes: &[Vec<f32>]) -> f64 {
+    let a: Vec<f64> = shapes
+        .iter()
+        .map(|s| {
+            s.chunks_exact(3)
+                .map(|p| f64::from(p[0]))
+                .fold(f64::MIN, f64::max)
+        })
+        .collect();
+    let mean = a.iter().sum::<f64>() / a.len() as f64;
+    (a.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / a.len() as f64).sqrt()
+}
+
+#[test]
+fn draws_through_the_fitted_prior_vary_like_the_training_shapes() {
+    let shapes = toy_shapes();
+    let trained = train_beta_vae(&shapes, &config(), &quick(120, 1), &mut Unmonitored).unwrap();
+    let prior = trained.aggregate_prior(&shapes).unwrap();
+    let means = trained.encode_mean(&shapes).unwrap();
+    for d in 0..2 {
+        let centre = means.iter().map(|z| z[d]).sum::<f32>() / means.len() as f32;
+        assert!((prior.centre[d] - centre).abs() < 1e-4, "dimension {d}");
+        assert!(prior.spread[d] > 0.0);
+    }
+    let codes: Vec<Vec<f32>> = trained
+        .sample_codes(200, 3)
+        .iter()
+        .map(|e| prior.code(e))
+        .collect();
+    let draws = trained.decode(&codes).unwrap();
+    let (training, generated) = (spread_of_semi_axis(&shapes), spread_of_semi_axis(&draws));
+    assert!(
+        generated > 0.5 * training && generated < 2.0 * training,
+        "semi-axis sd {generated:.2} mm against {training:.2} mm in training"
+    );
+}

@@ -19,8 +19,8 @@ mod init;
 pub mod slots;
 pub mod train;
 
-pub use beta_vae::{BetaVaeConfig, CoordinateScaling};
-pub use beta_vae_train::{BetaVaeTraining, TrainedBetaVae, train_beta_vae};
+pub use beta_vae::{BetaVaeConfig, ShapeScaling};
+pub use beta_vae_train::{BetaVaeTraining, LatentPrior, TrainedBetaVae, train_beta_vae};
 pub use error::NnError;
 pub use feast::{FeaStConfig, FeaStConv};
 pub use graph::{Features, GraphBatch, GraphSample, PositionScaling};

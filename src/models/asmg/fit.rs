@@ -248,8 +248,9 @@ pub fn fit(
         generator.to_bytes().map_err(nn_error)?,
     );
     let sizes = NetworkSizes::of(&graph.config, &generator.config);
+    let latent_prior = generator.aggregate_prior(&shapes).map_err(nn_error)?;
     let networks = AsmgModel::derive(graph, generator, &learned.atlas, params)?;
-    let model = AsmgModel::new(
+    let mut model = AsmgModel::new(
         learned.atlas,
         aligned.reference,
         params.clone(),
@@ -257,6 +258,7 @@ pub fn fit(
         weights,
         Some(networks),
     );
+    model.latent_prior = Some(latent_prior);
 
     stages.enter("evaluation");
     let training_faces: Vec<&[[u32; 3]]> = training.iter().map(|m| m.faces.as_slice()).collect();

@@ -15,8 +15,10 @@ use super::smoothing::{Smoother, SmoothingParams};
 use crate::mesh::Mesh;
 use crate::models::ModelError;
 
-/// Default tolerance on the mean atlas movement of a step, mm.
-pub const DEFAULT_TOLERANCE_MM: f64 = 0.05;
+/// Default tolerance on the mean atlas movement of a step, mm: a fortieth of the phantoms'
+/// ≈ 4 mm vertex spacing. With hybrid features on 40 LV phantoms the damped loop moved the
+/// atlas 2.8, 1.6, 0.9 … 0.09 mm in 10 steps.
+pub const DEFAULT_TOLERANCE_MM: f64 = 0.1;
 /// Default cap on the atlas steps.
 pub const DEFAULT_MAX_STEPS: usize = 10;
 

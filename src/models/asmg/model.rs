@@ -2,7 +2,8 @@
 //! beta-VAE generator of atlas-domain shapes, with the settings that tie them together.
 //!
 //! The networks are stored as burn records (bytes) and rebuilt once, on first use, after a
-//! model is read back. Sampling draws z ~ N(0, I) and decodes it to a mesh with the atlas
+//! model is read back. Sampling draws a standard normal ε (clipped), maps it through the
+//! Gaussian fitted to the training shapes' codes and decodes it to a mesh with the atlas
 //! connectivity (mm). Reconstruction of an unseen mesh: simplify, register rigidly to the
 //! alignment reference, Ψ → attention Φ → h → smoothed h' → encoder mean → decoder.
 
@@ -23,7 +24,8 @@ use crate::mesh::simplify::simplify;
 use crate::models::alignment::{self, AlignmentParams};
 use crate::models::{ModelError, Reconstruction, ShapeModel};
 use crate::nn::{
-    BetaVaeConfig, GraphSample, GraphVaeConfig, NnError, TrainedBetaVae, TrainedGraphVae,
+    BetaVaeConfig, GraphSample, GraphVaeConfig, LatentPrior, NnError, TrainedBetaVae,
+    TrainedGraphVae,
 };
 
 /// Latent coordinates are kept within ±this (in standard deviations), as RSMP clips its
@@ -108,6 +110,10 @@ pub struct AsmgModel {
     pub graph_weights: Vec<u8>,
     /// The generator's weights (burn record).
     pub generator_weights: Vec<u8>,
+    /// The Gaussian that new codes are drawn from, fitted to the training shapes' codes
+    /// (absent in models stored before it existed: N(0, I)).
+    #[serde(default)]
+    pub latent_prior: Option<LatentPrior>,
     /// The networks once built (boxed: they are large and most copies of a model never
     /// build them).
     #[serde(skip)]
@@ -125,7 +131,7 @@ pub(crate) fn nn_error(e: NnError) -> ModelError {
 }
 
 /// A mesh simplified to at most `max_vertices` vertices (unchanged when it has fewer).
-pub(crate) fn simplified(mesh: &Mesh, max_vertices: usize) -> Result<Mesh, ModelError> {
+pub fn simplified(mesh: &Mesh, max_vertices: usize) -> Result<Mesh, ModelError> {
     simplify(mesh, max_vertices)
         .map(|s| s.mesh)
         .map_err(|e| ModelError::InvalidInput(format!("simplification failed: {e}")))
@@ -133,7 +139,7 @@ pub(crate) fn simplified(mesh: &Mesh, max_vertices: usize) -> Result<Mesh, Model
 
 /// A mesh registered rigidly to `reference`: the simplified mesh in the model frame (for the
 /// networks) and all original vertices in the model frame (mm).
-pub(crate) fn align(
+pub fn align(
     reference: &Mesh,
     mesh: &Mesh,
     alignment: &AlignmentParams,
@@ -149,12 +155,12 @@ pub(crate) fn align(
 }
 
 /// Flattened `[x0, y0, z0, x1, …]` in `f32`.
-pub(crate) fn flatten_f32(shape: &[[f64; 3]]) -> Vec<f32> {
+pub fn flatten_f32(shape: &[[f64; 3]]) -> Vec<f32> {
     shape.iter().flat_map(|p| p.map(|c| c as f32)).collect()
 }
 
 /// Ψ's embeddings of one (aligned) mesh.
-pub(crate) fn embed_mesh(
+pub fn embed_mesh(
     graph: &TrainedGraphVae,
     mesh: &Mesh,
     params: &AsmgParams,
@@ -165,7 +171,7 @@ pub(crate) fn embed_mesh(
 }
 
 /// Ψ's embeddings of many graphs, `chunk` graphs per forward pass.
-pub(crate) fn embeddings_of(
+pub fn embeddings_of(
     graph: &TrainedGraphVae,
     samples: &[GraphSample],
     chunk: usize,
@@ -199,6 +205,7 @@ impl AsmgModel {
             sizes,
             graph_weights: weights.0,
             generator_weights: weights.1,
+            latent_prior: None,
             networks: OnceLock::new(),
         };
         if let Some(n) = networks {
@@ -295,9 +302,13 @@ impl ShapeModel for AsmgModel {
     }
 
     fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Mesh, ModelError> {
-        let z: Vec<f32> = (0..self.sizes.vae_latent)
+        let standard: Vec<f32> = (0..self.sizes.vae_latent)
             .map(|_| latent_coordinate(rng, sampling))
             .collect();
+        let z = match &self.latent_prior {
+            Some(prior) if prior.centre.len() == standard.len() => prior.code(&standard),
+            _ => standard,
+        };
         self.decode(&[z])?
             .pop()
             .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))
