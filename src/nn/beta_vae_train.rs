@@ -192,8 +192,9 @@ pub fn train_beta_vae(
 }
 
 impl TrainedBetaVae {
-    /// Latent means `[L]` of flattened shapes (mm).
-    pub fn encode_mean(&self, shapes: &[Vec<f32>]) -> Result<Vec<Vec<f32>>, NnError> {
+    /// The encoder's latent means and log-variances of flattened shapes (mm), each
+    /// `[shapes, L]`.
+    fn encode(&self, shapes: &[Vec<f32>]) -> Result<(Tensor<2>, Tensor<2>), NnError> {
         check_shapes(shapes, self.config.d_in)?;
         let scaling = self.model.scaling();
         let x = rows(
@@ -202,25 +203,22 @@ impl TrainedBetaVae {
             |s| scaling.normalise(s),
             &inference_device(),
         );
-        Ok(split(self.model.encode(x).0, self.config.latent))
+        Ok(self.model.encode(x))
+    }
+
+    /// Latent means `[L]` of flattened shapes (mm).
+    pub fn encode_mean(&self, shapes: &[Vec<f32>]) -> Result<Vec<Vec<f32>>, NnError> {
+        Ok(split(self.encode(shapes)?.0, self.config.latent))
     }
 
     /// The distribution of the training shapes' codes (see [`LatentPrior`]): per latent
     /// dimension, the mean of the encoder means and the spread of the mixture of the
     /// encoder's Gaussians.
     pub fn aggregate_prior(&self, shapes: &[Vec<f32>]) -> Result<LatentPrior, NnError> {
-        check_shapes(shapes, self.config.d_in)?;
         if shapes.is_empty() {
             return Err(NnError::EmptyDataset);
         }
-        let scaling = self.model.scaling();
-        let x = rows(
-            shapes,
-            self.config.d_in,
-            |s| scaling.normalise(s),
-            &inference_device(),
-        );
-        let (mu, log_var) = self.model.encode(x);
+        let (mu, log_var) = self.encode(shapes)?;
         let latent = self.config.latent;
         let (mu, log_var) = (split(mu, latent), split(log_var, latent));
         let n = shapes.len() as f64;
