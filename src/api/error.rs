@@ -10,6 +10,7 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use crate::mesh::MeshError;
+use crate::report::{PlotError, PlotFormat};
 use crate::store::StoreError;
 
 /// Media type of every error body.
@@ -101,6 +102,19 @@ impl ApiError {
             "request.method_not_allowed",
             "this endpoint does not support the HTTP method used; see /docs",
         )
+    }
+
+    /// 400 for a plot format other than those of [`PlotFormat`].
+    pub fn unsupported_plot_format(name: &str) -> Self {
+        Self::new(
+            StatusCode::BAD_REQUEST,
+            "plot.unsupported_format",
+            format!(
+                "format '{name}' is not a plot format; use {}",
+                PlotFormat::NAMES.join(" or ")
+            ),
+        )
+        .with("field", "format")
     }
 
     /// The HTTP status.
@@ -200,6 +214,13 @@ impl From<StoreError> for ApiError {
                 )
             }
         }
+    }
+}
+
+impl From<PlotError> for ApiError {
+    fn from(err: PlotError) -> Self {
+        let available = err.available().to_vec();
+        Self::new(StatusCode::NOT_FOUND, err.code(), err.to_string()).with("available", available)
     }
 }
 

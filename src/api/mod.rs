@@ -13,6 +13,7 @@ mod jobs;
 mod meshes;
 mod models;
 mod ops;
+mod plots;
 mod reports;
 pub mod upload;
 
@@ -124,7 +125,8 @@ fn api_routes() -> (OpenApiRouter<AppState>, OpenApiRouter<AppState>) {
         .merge(jobs::router())
         .merge(models::router())
         .merge(cohorts::router())
-        .merge(reports::router());
+        .merge(reports::router())
+        .merge(plots::router());
     (v1, ops::router())
 }
 

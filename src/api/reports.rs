@@ -1,4 +1,5 @@
-//! Report pages: `GET /v1/cohorts/{id}/report.html` and `GET /v1/models/{id}/report.html`.
+//! Report pages: `GET /v1/cohorts/{id}/report.html` and `GET /v1/models/{id}/report.html`,
+//! and the stored data they are drawn from (shared with the single plots of `plots`).
 
 use std::collections::BTreeMap;
 
@@ -45,7 +46,8 @@ fn member_values(members: &[serde_json::Value]) -> BTreeMap<String, Vec<f64>> {
 
 /// The cohort's report page: a violin plot per biomarker (training population against the
 /// cohort, with the range, mode ± 3B and mean ± 2σ intervals), the acceptance table and the
-/// privacy guard. Self-contained HTML with inline SVG.
+/// privacy guard. Self-contained HTML with inline SVG; each plot links to itself alone
+/// (`plots/{name}`, as SVG or PNG).
 #[utoipa::path(
     get, path = "/v1/cohorts/{id}/report.html", tag = "cohorts",
     params(("id" = String, Path, description = "Cohort id")),
@@ -58,25 +60,14 @@ async fn cohort_report(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Html<String>, ApiError> {
-    let cohort = state.store.cohort(&id).await?;
-    let reference: ReferencePopulation = stored(
-        "reference",
-        state.store.model_reference(&cohort.model_id).await?,
-    )?;
-    let report: CohortReport = stored("report", cohort.report)?;
-    let values = member_values(&cohort.members);
-    Ok(Html(cohort_page(&CohortPage {
-        cohort_id: &cohort.id,
-        model_id: &cohort.model_id,
-        report: &report,
-        member_values: &values,
-        reference: &reference,
-    })))
+    let cohort = CohortData::load(&state, &id).await?;
+    Ok(Html(cohort_page(&cohort.page())))
 }
 
 /// The model's report page: distributions of generalisation, specificity and matching
 /// distances, the metric table (vertex-to-vertex and point-to-surface), cumulative explained
-/// variance (PCA models), loss curves (trained models) and fit times.
+/// variance (PCA models), loss curves (trained models) and fit times. Each plot links to
+/// itself alone (`plots/{name}`, as SVG or PNG).
 #[utoipa::path(
     get, path = "/v1/models/{id}/report.html", tag = "models",
     params(("id" = String, Path, description = "Model id")),
@@ -89,11 +80,72 @@ async fn model_report(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Html<String>, ApiError> {
-    let model = state.store.model(&id).await?;
-    let summary: ModelSummary = stored("summary", model.summary)?;
-    Ok(Html(model_page(&ModelPage {
-        model_id: &model.id,
-        model_type: &model.model_type,
-        summary: &summary,
-    })))
+    let model = ModelData::load(&state, &id).await?;
+    Ok(Html(model_page(&model.page())))
+}
+
+/// What a cohort's page and its plots are drawn from.
+pub(super) struct CohortData {
+    id: String,
+    model_id: String,
+    report: CohortReport,
+    member_values: BTreeMap<String, Vec<f64>>,
+    reference: ReferencePopulation,
+}
+
+impl CohortData {
+    /// Reads the cohort, its members' biomarkers and its model's training population.
+    pub(super) async fn load(state: &AppState, id: &str) -> Result<Self, ApiError> {
+        let cohort = state.store.cohort(id).await?;
+        let reference = stored(
+            "reference",
+            state.store.model_reference(&cohort.model_id).await?,
+        )?;
+        Ok(Self {
+            report: stored("report", cohort.report)?,
+            member_values: member_values(&cohort.members),
+            id: cohort.id,
+            model_id: cohort.model_id,
+            reference,
+        })
+    }
+
+    /// The page's inputs.
+    pub(super) fn page(&self) -> CohortPage<'_> {
+        CohortPage {
+            cohort_id: &self.id,
+            model_id: &self.model_id,
+            report: &self.report,
+            member_values: &self.member_values,
+            reference: &self.reference,
+        }
+    }
+}
+
+/// What a model's page and its plots are drawn from.
+pub(super) struct ModelData {
+    id: String,
+    model_type: String,
+    summary: ModelSummary,
+}
+
+impl ModelData {
+    /// Reads the model's stored summary.
+    pub(super) async fn load(state: &AppState, id: &str) -> Result<Self, ApiError> {
+        let model = state.store.model(id).await?;
+        Ok(Self {
+            summary: stored("summary", model.summary)?,
+            id: model.id,
+            model_type: model.model_type,
+        })
+    }
+
+    /// The page's inputs.
+    pub(super) fn page(&self) -> ModelPage<'_> {
+        ModelPage {
+            model_id: &self.id,
+            model_type: &self.model_type,
+            summary: &self.summary,
+        }
+    }
 }

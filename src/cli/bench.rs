@@ -5,26 +5,25 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use super::bench_models::{BenchModel, ModelEntry, bench_models, parse_model_entry};
 use super::bench_report::{
     BenchReport, CohortBench, FitBench, ModelBench, ReferenceFidelity, SpecificityBench,
     VolumeFidelity, print_markdown,
 };
 use super::memory::{self, StepMemory};
 use super::progress::StderrProgress;
-use super::study::{parse_model_type, parse_params};
 use super::{CliResult, write_json};
 use crate::eval::SummaryStats;
 use crate::eval::fidelity::Fidelity;
 use crate::eval::privacy::CorrespondedShapes;
 use crate::geometry::pca::Sampling;
-use crate::jobs::ModelParams;
 use crate::jobs::fit::fit_model;
 use crate::mesh::measures::volume_ml;
 use crate::mesh::{Mesh, phantom};
 use crate::models::cohort::{CohortSpec, Criterion, TrainingIndex, sample_cohort};
 use crate::models::evaluation::evaluate;
 use crate::models::progress::Stages;
-use crate::models::{ModelError, ModelType, ShapeModel};
+use crate::models::{ModelError, ShapeModel};
 
 /// Added to the bench seed for the fresh phantoms of the fidelity check, so that they are
 /// not the training or test subjects.
@@ -42,11 +41,13 @@ pub struct BenchArgs {
     /// Test phantoms (held out from every fit).
     #[arg(long, default_value_t = 25)]
     pub test: usize,
-    /// Model types to compare, comma-separated.
-    #[arg(long, value_delimiter = ',', value_parser = parse_model_type, default_value = "rsmp")]
-    pub models: Vec<ModelType>,
-    /// Parameters of one model type as `TYPE=JSON` (repeatable; defaults otherwise).
-    #[arg(long = "params", value_name = "TYPE=JSON")]
+    /// Models to compare, comma-separated: `TYPE` or `TYPE:LABEL` (e.g.
+    /// `rsmp,asmg:sgcn,asmg:hgcn`); the label, else the type, names the model in the output.
+    #[arg(long, value_delimiter = ',', value_parser = parse_model_entry, default_value = "rsmp")]
+    pub models: Vec<ModelEntry>,
+    /// Parameters as `LABEL=JSON` for one labelled model or `TYPE=JSON` for the models of a
+    /// type without their own (repeatable; defaults otherwise).
+    #[arg(long = "params", value_name = "KEY=JSON")]
     pub params: Vec<String>,
     /// Random seed of the phantoms, the fits and the samples.
     #[arg(long, default_value_t = 0)]
@@ -73,23 +74,6 @@ struct BenchData {
     fresh_volumes: Vec<f64>,
 }
 
-fn model_params(args: &BenchArgs) -> Result<Vec<(ModelType, ModelParams)>, String> {
-    let mut given: Vec<(ModelType, &str)> = Vec::new();
-    for p in &args.params {
-        let (name, json) = p
-            .split_once('=')
-            .ok_or_else(|| format!("--params {p}: expected TYPE=JSON"))?;
-        given.push((parse_model_type(name.trim())?, json));
-    }
-    args.models
-        .iter()
-        .map(|&t| {
-            let json = given.iter().find(|(g, _)| *g == t).map(|(_, j)| *j);
-            Ok((t, parse_params(t, json)?))
-        })
-        .collect()
-}
-
 fn check(args: &BenchArgs) -> CliResult {
     let positive = [
         ("--train", args.train),
@@ -108,7 +92,7 @@ fn check(args: &BenchArgs) -> CliResult {
 pub fn run(args: &BenchArgs) -> CliResult {
     check(args)?;
     let started = Instant::now();
-    let params = model_params(args)?;
+    let benched = bench_models(&args.models, &args.params)?;
     eprintln!(
         "generating {} + {} {} phantoms (seed {})",
         args.train, args.test, args.family, args.seed
@@ -138,8 +122,8 @@ pub fn run(args: &BenchArgs) -> CliResult {
     drop(phantoms);
     let mut models = Vec::new();
     let mut peak_mib = memory::resident().map_or(0.0, |r| r.peak_mib);
-    for (model_type, p) in &params {
-        let bench = bench_model(*model_type, p, &data, args)?;
+    for model in &benched {
+        let bench = bench_model(model, &data, args)?;
         let steps = [
             bench.fit.memory,
             bench.cohort.memory,
@@ -173,12 +157,11 @@ fn vertex_range(training: &[Mesh], test: &[Mesh]) -> [usize; 2] {
 }
 
 fn bench_model(
-    model_type: ModelType,
-    params: &ModelParams,
+    benched: &BenchModel,
     data: &BenchData,
     args: &BenchArgs,
 ) -> Result<ModelBench, String> {
-    let name = model_type.as_str();
+    let (name, params) = (benched.name.as_str(), &benched.params);
     eprintln!("fitting {name} on {} meshes", data.training.len());
     let mut progress = StderrProgress::new(name);
     let started = Instant::now();
@@ -242,6 +225,7 @@ fn bench_model(
     let specificity = time_specificity(model, &aligned, &faces, args)?;
     Ok(ModelBench {
         model: name.to_owned(),
+        model_type: benched.model_type.as_str().to_owned(),
         params: params.to_json(),
         n_modes: outcome.summary.n_modes,
         fit,

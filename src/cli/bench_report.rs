@@ -27,7 +27,7 @@ pub struct BenchReport {
     pub vertex_counts: [usize; 2],
     /// The generator's volume distribution and how close the training phantoms are to it.
     pub fidelity_reference: ReferenceFidelity,
-    /// One entry per model type.
+    /// One entry per model of `--models`.
     pub models: Vec<ModelBench>,
     /// Peak resident memory of the process (VmHWM), MiB.
     pub process_peak_mib: Option<f64>,
@@ -55,11 +55,13 @@ pub struct ReferenceFidelity {
     pub training_measured: Fidelity,
 }
 
-/// Figures of one model type.
+/// Figures of one model of `--models`.
 #[derive(Debug, Serialize)]
 pub struct ModelBench {
-    /// Model type.
+    /// The model's name: its label, else its type.
     pub model: String,
+    /// Model type.
+    pub model_type: String,
     /// Parameters, defaults included.
     pub params: serde_json::Value,
     /// Modes kept (PCA models).

@@ -4,7 +4,8 @@
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
-use super::svg::{Band, Group, violin_plot};
+use super::cohort_plots::biomarker_violin;
+use super::plot::figure;
 use super::{escape, mean_sd, page};
 use crate::models::cohort::CohortReport;
 use crate::models::reference::ReferencePopulation;
@@ -23,7 +24,7 @@ pub struct CohortPage<'a> {
     pub reference: &'a ReferencePopulation,
 }
 
-/// The page as HTML; one plot per biomarker of the report.
+/// The page as HTML; one plot per biomarker of the report (see [`super::cohort_plot`]).
 pub fn cohort_page(c: &CohortPage<'_>) -> String {
     let mut body = String::new();
     let size = c.member_values.values().map(Vec::len).max().unwrap_or(0);
@@ -49,39 +50,7 @@ pub fn cohort_page(c: &CohortPage<'_>) -> String {
         "<h2>Biomarkers: training population against the cohort</h2><div class=\"plots\">",
     );
     for (name, b) in &c.report.biomarkers {
-        let training = c
-            .reference
-            .names
-            .iter()
-            .position(|n| n == name)
-            .and_then(|i| c.reference.values.get(i))
-            .map_or(&[][..], Vec::as_slice);
-        let cohort = c.member_values.get(name).map_or(&[][..], Vec::as_slice);
-        let groups = [
-            Group {
-                label: "training",
-                values: training,
-            },
-            Group {
-                label: "cohort",
-                values: cohort,
-            },
-        ];
-        let bands = [
-            Band {
-                label: "range",
-                interval: b.intervals.range,
-            },
-            Band {
-                label: "mode ± 3B",
-                interval: b.intervals.mode,
-            },
-            Band {
-                label: "mean ± 2σ",
-                interval: b.intervals.mean,
-            },
-        ];
-        body.push_str(&violin_plot(name, &b.unit, &groups, &bands));
+        body.push_str(&figure(name, &biomarker_violin(c, name, b)));
     }
     body.push_str("</div><h2>Clusters</h2><p class=\"note\">This model has a single population (no clusters), so there is no per-cluster breakdown.</p>");
     page(&format!("Cohort {}", c.cohort_id), &body)

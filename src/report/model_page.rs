@@ -3,10 +3,10 @@
 
 use std::fmt::Write;
 
-use super::svg::{Group, Series, line_plot, violin_plot};
+use super::model_plots::{CLOSED_FORM, model_plot, model_plot_names};
+use super::plot::figure;
 use super::{escape, mean_sd, page};
 use crate::eval::metrics::DistanceSummary;
-use crate::geometry::distance::SurfaceDistances;
 use crate::models::ModelSummary;
 
 /// What the model page shows.
@@ -19,7 +19,7 @@ pub struct ModelPage<'a> {
     pub summary: &'a ModelSummary,
 }
 
-/// The page as HTML.
+/// The page as HTML; its plots are those of [`model_plot_names`].
 pub fn model_page(m: &ModelPage<'_>) -> String {
     let s = m.summary;
     let e = &s.evaluation;
@@ -36,85 +36,17 @@ pub fn model_page(m: &ModelPage<'_>) -> String {
     );
     body.push_str(&metric_table(m));
     body.push_str("<h2>Distributions</h2><div class=\"plots\">");
-    let per = &e.per_item;
-    for (title, pairs) in [
-        (
-            "Generalisation (held-out reconstructions)",
-            &per.generalisation,
-        ),
-        (
-            "Specificity (samples against the nearest training mesh)",
-            &per.specificity,
-        ),
-        (
-            "Matching (held-out meshes against their normalised shapes)",
-            &per.matching,
-        ),
-    ] {
-        if !pairs.is_empty() {
-            body.push_str(&distance_violins(title, pairs));
+    for name in model_plot_names(m) {
+        if let Ok(svg) = model_plot(m, &name) {
+            body.push_str(&figure(&name, &svg));
         }
-    }
-    if let Some(explained) = &s.explained_variance {
-        let points: Vec<(f64, f64)> = explained
-            .iter()
-            .enumerate()
-            .map(|(i, v)| ((i + 1) as f64, *v))
-            .collect();
-        body.push_str(&line_plot(
-            "Cumulative explained variance",
-            "modes",
-            "fraction of variance",
-            &[Series {
-                label: "cumulative",
-                points: &points,
-            }],
-        ));
-    }
-    for curve in &s.losses {
-        let points: Vec<(f64, f64)> = curve
-            .per_epoch
-            .iter()
-            .enumerate()
-            .map(|(i, v)| ((i + 1) as f64, *v))
-            .collect();
-        let series = [Series {
-            label: "mean loss per epoch",
-            points: &points,
-        }];
-        let title = format!("Training loss: {}", curve.network);
-        body.push_str(&line_plot(&title, "epoch", "loss", &series));
     }
     body.push_str("</div>");
     if s.losses.is_empty() {
-        body.push_str("<p class=\"note\">No loss curves: this model is fitted in closed form (registration and PCA), not by gradient descent.</p>");
+        let _ = write!(body, "<p class=\"note\">No loss curves: {CLOSED_FORM}.</p>");
     }
     body.push_str(&timing_table(s));
     page(&format!("Model {}", m.model_id), &body)
-}
-
-fn distance_violins(title: &str, pairs: &[SurfaceDistances]) -> String {
-    let column = |f: fn(&SurfaceDistances) -> f64| pairs.iter().map(f).collect::<Vec<f64>>();
-    let (hd, ed, ed_star) = (column(|d| d.hd), column(|d| d.ed), column(|d| d.ed_star));
-    violin_plot(
-        title,
-        "mm",
-        &[
-            Group {
-                label: "HD",
-                values: &hd,
-            },
-            Group {
-                label: "ED",
-                values: &ed,
-            },
-            Group {
-                label: "ED*",
-                values: &ed_star,
-            },
-        ],
-        &[],
-    )
 }
 
 fn summary_cells(s: Option<&DistanceSummary>) -> String {

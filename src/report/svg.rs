@@ -7,13 +7,16 @@ use super::escape;
 use crate::eval::kde::silverman_bandwidth;
 use crate::eval::stats::{quantile_sorted, sorted};
 
-/// Plot size in px.
-const WIDTH: f64 = 560.0;
-const HEIGHT: f64 = 320.0;
+/// Plot width in px.
+pub const WIDTH: f64 = 560.0;
+/// Plot height in px.
+pub const HEIGHT: f64 = 320.0;
 /// Margins in px: left (axis labels), right, top (title), bottom.
 const MARGIN: [f64; 4] = [64.0, 16.0, 32.0, 40.0];
 /// Points at which a violin's density is evaluated.
 const VIOLIN_POINTS: usize = 64;
+/// Fonts of the text: the pages' own, so a plot looks the same alone as on its page.
+const FONT_FAMILY: &str = "system-ui, sans-serif";
 /// Series and group colours.
 const PALETTE: [&str; 6] = [
     "#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3", "#937860",
@@ -63,7 +66,7 @@ impl Scale {
 fn open(out: &mut String, title: &str) {
     let _ = write!(
         out,
-        r#"<svg class="plot" xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" role="img"><title>{t}</title><text x="{x}" y="20" text-anchor="middle" font-size="14" font-weight="bold">{t}</text>"#,
+        r#"<svg class="plot" xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="{FONT_FAMILY}" role="img"><title>{t}</title><text x="{x}" y="20" text-anchor="middle" font-size="14" font-weight="bold">{t}</text>"#,
         t = escape(title),
         x = WIDTH / 2.0,
     );

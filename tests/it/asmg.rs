@@ -126,6 +126,9 @@ async fn tiny_phantoms_to_asmg_model_to_cohort() {
     // The report page: three distance distributions and the two networks' loss curves.
     let page = format!("/v1/models/{model_id}/report.html");
     assert_eq!(crate::reports::plots_on_page(&s, &page).await, 5);
+    crate::reports::check_single_plot(&s, &page, "loss_graph_vae").await;
+    let no_pca = Some("explained_variance");
+    crate::reports::check_plot_errors(&s, &page, "loss_beta_vae", no_pca).await;
 
     let url = s.url(&format!("/v1/models/{model_id}/cohorts"));
     let request = json!({"size": 6, "seed": 3});

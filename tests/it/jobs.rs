@@ -238,6 +238,12 @@ async fn phantoms_to_model_to_reproducible_cohort() {
     );
     let model_page = format!("/v1/models/{model_id}/report.html");
     assert_eq!(crate::reports::plots_on_page(&s, &model_page).await, 4);
+    // Each plot alone, as SVG and PNG, and the errors of the plot URLs.
+    crate::reports::check_single_plot(&s, &cohort_page, "volume_ml").await;
+    crate::reports::check_single_plot(&s, &model_page, "explained_variance").await;
+    crate::reports::check_plot_errors(&s, &cohort_page, "volume_ml", None).await;
+    let closed_form = Some("loss_graph_vae");
+    crate::reports::check_plot_errors(&s, &model_page, "specificity", closed_form).await;
 
     let member = |cohort: &Value| {
         s.url(&format!(
