@@ -208,6 +208,39 @@ fn report_hard_matches(
     }
 }
 
+/// RMS vertex distance (mm) between two flattened shapes with the same vertices.
+fn rms_distance(a: &[f32], b: &[f32]) -> f64 {
+    let sum: f64 = a.iter().zip(b).map(|(x, y)| f64::from(x - y).powi(2)).sum();
+    (sum / a.len() as f64 * 3.0).sqrt()
+}
+
+/// How close the draws come to the training shapes: mean distance to the nearest, and the
+/// share nearer than the 5th percentile of the training shapes' own nearest-neighbour
+/// distances (a stand-in for the privacy guard's `near_copy`).
+fn report_draw_novelty(shapes: &[Vec<f32>], draws: &[Vec<f32>]) {
+    let nearest = |s: &[f32], skip: Option<usize>| -> f64 {
+        shapes
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| Some(*k) != skip)
+            .map(|(_, t)| rms_distance(s, t))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let mut own: Vec<f64> = (0..shapes.len())
+        .map(|k| nearest(&shapes[k], Some(k)))
+        .collect();
+    own.sort_by(f64::total_cmp);
+    let threshold = own[own.len() / 20];
+    let to_training: Vec<f64> = draws.iter().map(|d| nearest(d, None)).collect();
+    let near = to_training.iter().filter(|&&d| d < threshold).count();
+    println!(
+        "draws: nearest training shape {:.2} mm on average (training among themselves {:.2}); {near} of {} nearer than {threshold:.2} mm",
+        mean(to_training.iter().copied()),
+        mean(own.iter().copied()),
+        draws.len()
+    );
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let num = |i: usize, d: usize| args.get(i).and_then(|a| a.parse().ok()).unwrap_or(d);
@@ -319,7 +352,7 @@ fn main() {
                 .ok()
                 .and_then(|e| e.parse().ok())
                 .unwrap_or(params.epochs_vae),
-            batch_size: params.batch_size,
+            batch_size: params.batch_size_vae,
             lr: params.lr,
             beta,
             seed,
@@ -344,13 +377,31 @@ fn main() {
             .map(|e| prior.code(e))
             .collect();
         let draws = generator.decode(&codes).expect("decode");
+        let independent = cohortforge::nn::LatentPrior {
+            mixing: Vec::new(),
+            ..prior.clone()
+        };
+        let independent_codes: Vec<Vec<f32>> = generator
+            .sample_codes(count.max(100), seed)
+            .iter()
+            .map(|e| independent.code(e))
+            .collect();
+        let independent_draws = generator.decode(&independent_codes).expect("decode");
+        let iv: Vec<f64> = independent_draws
+            .iter()
+            .map(|s| volume_of(&unflatten(s)))
+            .collect();
+        let (im, is) = spread(&iv);
+        println!("draws with independent latent dimensions: {im:.1} ± {is:.1} ml");
+        report_draw_novelty(&shapes, &independent_draws);
         let rv: Vec<f64> = recon.iter().map(|s| volume_of(&unflatten(s))).collect();
         let dv: Vec<f64> = draws.iter().map(|s| volume_of(&unflatten(s))).collect();
         let ((rm, rs), (dm, ds)) = (spread(&rv), spread(&dv));
+        report_draw_novelty(&shapes, &draws);
         println!(
             "β {beta:e}, {} epochs, batch {}: {:.1} s, final loss {:.3}; reconstruction RMS {rms:.2} mm, volumes {rm:.1} ± {rs:.1} ml; draws {dm:.1} ± {ds:.1} ml",
-            params.epochs_vae,
-            params.batch_size,
+            training.epochs,
+            params.batch_size_vae,
             started.elapsed().as_secs_f64(),
             generator.losses.last().copied().unwrap_or(f64::NAN)
         );

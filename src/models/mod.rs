@@ -12,6 +12,7 @@ pub mod evaluation;
 pub mod progress;
 pub mod reference;
 pub mod rsmp;
+pub mod workers;
 
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};

@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 use super::alignment::{self, AlignmentParams, Normalisation};
 use super::evaluation::evaluate;
 use super::progress::{Progress, Stages};
+use super::workers::map_items;
 use super::{
     AnyModel, AtlasInfo, FitOutcome, ModelError, ModelSummary, Reconstruction, ReferencePopulation,
     ShapeModel, StageTiming, StoredModel, TrainingShapes,
@@ -219,14 +220,16 @@ pub fn fit(
         },
         alignment: params.alignment(),
     };
-    let (mut shapes, mut aligned) = (Vec::new(), Vec::new());
-    for (k, mesh) in training.iter().enumerate() {
-        let (h, a) = model.normalise(mesh)?;
-        shapes.push(h);
-        aligned.push(a);
-        let message = format!("registered training mesh {} of {}", k + 1, training.len());
-        stages.report(progress, k as u64 + 1, training.len() as u64, message, None)?;
-    }
+    let total = training.len() as u64;
+    let registered = map_items(
+        training,
+        |mesh| model.normalise(mesh),
+        |done| {
+            let message = format!("registered training mesh {done} of {total}");
+            Ok(stages.report(progress, done as u64, total, message, None)?)
+        },
+    )?;
+    let (shapes, aligned): (Vec<_>, Vec<_>) = registered.into_iter().unzip();
     stages.enter("pca");
     model.normalisation = Normalisation::fit(&aligned);
     let flattened: Vec<Vec<f64>> = shapes.iter().map(|h| model.to_pca_space(h)).collect();

@@ -120,9 +120,24 @@ fn a_latent_prior_maps_standard_draws_to_codes() {
     let prior = LatentPrior {
         centre: vec![1.0, 2.0],
         spread: vec![2.0, 0.5],
+        mixing: Vec::new(),
     };
     assert_eq!(prior.code(&[1.0, -2.0]), vec![3.0, 1.0]);
     assert_eq!(LatentPrior::standard(2).code(&[0.3, -1.0]), vec![0.3, -1.0]);
+}
+
+#[test]
+fn a_latent_prior_with_a_covariance_keeps_the_correlation() {
+    // var 4 and 1, correlation 0.9: the Cholesky factor is [[2, 0], [0.9, √0.19]].
+    let covariance = nalgebra::DMatrix::from_row_slice(2, 2, &[4.0, 1.8, 1.8, 1.0]);
+    let prior = LatentPrior::with_covariance(vec![1.0, -1.0], &covariance);
+    assert_eq!(prior.spread, vec![2.0, 1.0]);
+    let code = prior.code(&[1.0, 1.0]);
+    assert!((code[0] - 3.0).abs() < 1e-6, "{code:?}");
+    assert!(
+        (code[1] - (-1.0 + 0.9 + 0.19f32.sqrt())).abs() < 1e-6,
+        "{code:?}"
+    );
 }
 
 /// Standard deviation of the largest `x` (the semi-axis `a`) over flattened shapes.

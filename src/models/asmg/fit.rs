@@ -14,6 +14,7 @@ use crate::mesh::Mesh;
 use crate::models::alignment::median_resolution_index;
 use crate::models::evaluation::evaluate;
 use crate::models::progress::{Progress, Stages};
+use crate::models::workers::map_items;
 use crate::models::{
     AnyModel, AtlasInfo, FitOutcome, LossCurve, ModelError, ModelSummary, ReferencePopulation,
     StageTiming, StoredModel, TrainingShapes,
@@ -58,14 +59,16 @@ fn align_training(
         .ok_or_else(|| ModelError::invalid("atlas", "is not a training mesh"))
         .and_then(|m| simplified(m, params.max_vertices))?;
     let alignment = params.alignment();
-    let (mut meshes, mut vertices) = (Vec::new(), Vec::new());
-    for (k, mesh) in training.iter().enumerate() {
-        let (small, all) = align(&reference, mesh, &alignment, params.max_vertices)?;
-        meshes.push(small);
-        vertices.push(all);
-        let message = format!("registered training mesh {} of {}", k + 1, training.len());
-        stages.report(progress, k as u64 + 1, training.len() as u64, message, None)?;
-    }
+    let total = training.len() as u64;
+    let registered = map_items(
+        training,
+        |mesh| align(&reference, mesh, &alignment, params.max_vertices),
+        |done| {
+            let message = format!("registered training mesh {done} of {total}");
+            Ok(stages.report(progress, done as u64, total, message, None)?)
+        },
+    )?;
+    let (meshes, vertices) = registered.into_iter().unzip();
     Ok(Aligned {
         reference,
         meshes,
@@ -221,7 +224,7 @@ pub fn fit(
         BetaVaeConfig::new(3 * learned.atlas.vertex_count()).with_latent(params.latent_dim);
     let vae_training = BetaVaeTraining {
         epochs: params.epochs_vae,
-        batch_size: params.batch_size,
+        batch_size: params.batch_size_vae,
         lr: params.lr,
         beta: params.beta,
         seed,
