@@ -9,6 +9,7 @@ mod model_plots;
 mod plot;
 pub mod png;
 pub mod svg;
+mod ticks;
 
 pub use cohort_page::{CohortPage, cohort_page};
 pub use cohort_plots::{cohort_plot, cohort_plot_names};

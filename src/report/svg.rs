@@ -4,6 +4,7 @@
 use std::fmt::Write;
 
 use super::escape;
+use super::ticks::round_ticks;
 use crate::eval::kde::silverman_bandwidth;
 use crate::eval::stats::{quantile_sorted, sorted};
 
@@ -72,7 +73,7 @@ fn open(out: &mut String, title: &str) {
     );
 }
 
-/// A vertical value axis with five ticks, labelled with `label`.
+/// A vertical value axis with ticks at round values, labelled with `label`.
 fn y_axis(out: &mut String, y: Scale, label: &str) {
     let x0 = MARGIN[0];
     let _ = write!(
@@ -80,16 +81,14 @@ fn y_axis(out: &mut String, y: Scale, label: &str) {
         r##"<line x1="{x0}" y1="{}" x2="{x0}" y2="{}" stroke="#333"/>"##,
         y.p_hi, y.p_lo
     );
-    for i in 0..=4 {
-        let v = y.lo + (y.hi - y.lo) * i as f64 / 4.0;
+    for (v, text) in round_ticks(y.lo, y.hi, 4) {
         let p = y.at(v);
         let _ = write!(
             out,
-            r##"<line x1="{}" y1="{p:.1}" x2="{x0}" y2="{p:.1}" stroke="#333"/><text x="{}" y="{:.1}" text-anchor="end" font-size="11">{}</text>"##,
+            r##"<line x1="{}" y1="{p:.1}" x2="{x0}" y2="{p:.1}" stroke="#333"/><text x="{}" y="{:.1}" text-anchor="end" font-size="11">{text}</text>"##,
             x0 - 4.0,
             x0 - 6.0,
             p + 4.0,
-            tick(v)
         );
     }
     let _ = write!(
