@@ -100,11 +100,12 @@ fn y_axis(out: &mut String, y: Scale, label: &str) {
     );
 }
 
+/// Label of an axis end: whole numbers without decimals (epoch 3, not 3.00).
 fn tick(v: f64) -> String {
     let a = v.abs();
     if a != 0.0 && !(1e-2..1e5).contains(&a) {
         format!("{v:.2e}")
-    } else if a >= 100.0 {
+    } else if a >= 100.0 || v.fract() == 0.0 {
         format!("{v:.0}")
     } else {
         format!("{v:.2}")
@@ -334,6 +335,13 @@ pub fn line_plot(title: &str, x_label: &str, y_label: &str, series: &[Series<'_>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn axis_end_labels_drop_decimals_of_whole_numbers() {
+        assert_eq!(tick(3.0), "3");
+        assert_eq!(tick(2.5), "2.50");
+        assert_eq!(tick(1234.4), "1234");
+    }
 
     #[test]
     fn violin_plot_draws_each_group_and_band() {
