@@ -323,7 +323,24 @@ async fn download_mesh(
 
 /// A mesh file as an attachment named after the mesh.
 pub(crate) fn mesh_file_response(name: &str, format: Format, bytes: Vec<u8>) -> Response {
-    let safe: String = name
+    file_response(
+        bytes,
+        format.content_type(),
+        "attachment",
+        &format!("{name}.{}", format.extension()),
+    )
+}
+
+/// `bytes` served as `content_type` with a `Content-Disposition` of `disposition`
+/// (`attachment` or `inline`) and `file_name`, whose characters outside `[A-Za-z0-9-_.]`
+/// become `_`.
+pub(crate) fn file_response(
+    bytes: Vec<u8>,
+    content_type: &'static str,
+    disposition: &str,
+    file_name: &str,
+) -> Response {
+    let safe: String = file_name
         .chars()
         .map(|c| {
             if c.is_ascii_alphanumeric() || "-_.".contains(c) {
@@ -333,13 +350,10 @@ pub(crate) fn mesh_file_response(name: &str, format: Format, bytes: Vec<u8>) -> 
             }
         })
         .collect();
-    let disposition = format!("attachment; filename=\"{safe}.{}\"", format.extension());
+    let disposition = format!("{disposition}; filename=\"{safe}\"");
     let mut response = bytes.into_response();
     let headers = response.headers_mut();
-    headers.insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static(format.content_type()),
-    );
+    headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
     if let Ok(value) = HeaderValue::from_str(&disposition) {
         headers.insert(header::CONTENT_DISPOSITION, value);
     }

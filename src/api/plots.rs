@@ -2,8 +2,7 @@
 //! `GET /v1/cohorts/{id}/plots/{name}` and `GET /v1/models/{id}/plots/{name}`.
 
 use axum::extract::State;
-use axum::http::{HeaderValue, header};
-use axum::response::{IntoResponse, Response};
+use axum::response::Response;
 use serde::Deserialize;
 use utoipa::{IntoParams, ToSchema};
 use utoipa_axum::router::OpenApiRouter;
@@ -12,6 +11,7 @@ use utoipa_axum::routes;
 use super::AppState;
 use super::error::{ApiError, Problem};
 use super::extract::{Path, Query};
+use super::meshes::file_response;
 use super::reports::{CohortData, ModelData};
 use crate::report::png::svg_to_png;
 use crate::report::{PlotFormat, cohort_plot, model_plot};
@@ -121,25 +121,10 @@ async fn plot_response(stem: &str, svg: String, format: PlotFormat) -> Result<Re
             .map_err(|e| ApiError::internal(e.to_string()))?
             .map_err(|e| ApiError::internal(e.to_string()))?,
     };
-    let safe: String = stem
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    let disposition = format!("inline; filename=\"{safe}.{}\"", format.extension());
-    let mut response = body.into_response();
-    let headers = response.headers_mut();
-    headers.insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static(format.content_type()),
-    );
-    if let Ok(value) = HeaderValue::from_str(&disposition) {
-        headers.insert(header::CONTENT_DISPOSITION, value);
-    }
-    Ok(response)
+    Ok(file_response(
+        body,
+        format.content_type(),
+        "inline",
+        &format!("{stem}.{}", format.extension()),
+    ))
 }
