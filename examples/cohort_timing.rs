@@ -10,12 +10,12 @@ use std::time::Instant;
 use cohortforge::mesh::measures::volume_ml;
 
 use cohortforge::eval::biomarkers::Biomarkers;
-use cohortforge::eval::privacy::CorrespondedShapes;
 use cohortforge::geometry::Sampling;
 use cohortforge::mesh::phantom::{self, Family};
 use cohortforge::models::cohort::{CohortSpec, Criterion, TrainingIndex, draw_rng, sample_cohort};
 use cohortforge::models::progress::Silent;
-use cohortforge::models::rsmp::{self, RsmpParams};
+use cohortforge::models::rsmp::RsmpParams;
+use cohortforge::models::{FitInput, ModelType};
 
 fn main() {
     let args: Vec<usize> = std::env::args()
@@ -36,17 +36,28 @@ fn main() {
         ..RsmpParams::default()
     };
     let started = Instant::now();
-    let outcome = rsmp::fit(&meshes, &[], &params, None, seed, &mut Silent).expect("fit");
+    let params = ModelType::parse_name("rsmp")
+        .and_then(|t| t.parse_params(&serde_json::to_value(&params).expect("params")))
+        .expect("params");
+    let input = FitInput {
+        training: &meshes,
+        holdout: &[],
+        template_index: None,
+        seed,
+    };
+    let outcome = params.fit(&input, &mut Silent).expect("fit");
     println!(
         "fit of {count} meshes: {:.1} s",
         started.elapsed().as_secs_f64()
     );
     let stored = outcome.model;
-    let model = stored.model.shape_model();
-    let faces = model.atlas().faces.clone();
+    let model = stored.model.as_ref();
+    let atlas = &model.atlases()[0];
+    let faces = atlas.faces.clone();
     let h_volumes: Vec<f64> = stored
         .training
         .normalised_f64()
+        .swap_remove(0)
         .into_iter()
         .map(|h| volume_ml(&cohortforge::mesh::Mesh::new(h, faces.clone())))
         .collect();
@@ -54,24 +65,22 @@ fn main() {
     println!(
         "training volume: meshes {raw:.1} ml, normalised shapes {:.1} ml, atlas {:.1} ml",
         h_volumes.iter().sum::<f64>() / h_volumes.len() as f64,
-        volume_ml(model.atlas())
+        volume_ml(atlas)
     );
 
     let started = Instant::now();
     for draw in 0..size as u64 {
         let mesh = model
             .sample(&mut draw_rng(seed, draw), Sampling::Gaussian)
-            .expect("sample");
+            .expect("sample")
+            .mesh;
         Biomarkers::from_mesh(&mesh).expect("biomarkers");
     }
     let plain = started.elapsed().as_secs_f64();
 
     let shapes = stored.training.normalised_f64();
     let started = Instant::now();
-    let training = TrainingIndex {
-        shapes: CorrespondedShapes::new(&shapes).expect("shapes"),
-        privacy: &stored.training.privacy,
-    };
+    let training = TrainingIndex::new(&shapes, &stored.training.privacy).expect("shapes");
     let spec = CohortSpec {
         size,
         seed,

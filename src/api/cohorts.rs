@@ -15,10 +15,8 @@ use super::error::{ApiError, Problem};
 use super::extract::{Json, Path, Query};
 use super::meshes::{MeshFile, mesh_file_response};
 use super::models::{FormatQuery, load_model};
-use crate::eval::privacy::CorrespondedShapes;
 use crate::geometry::pca::Sampling;
 use crate::mesh;
-use crate::models::ModelError;
 use crate::models::ReferencePopulation;
 use crate::models::cohort::{CohortSpec, Criterion, Member, TrainingIndex, sample_cohort};
 use crate::store::cohorts::{CohortRecord, NewMember};
@@ -87,10 +85,12 @@ pub struct CohortView {
     #[schema(value_type = Object)]
     pub request: serde_json::Value,
     /// `biomarkers.<name>`: reference statistics, intervals, synthetic statistics and
-    /// acceptance rates `{range, mode, mean}`; `acceptance`: joint rates over all biomarkers.
+    /// acceptance rates `{range, mode, mean}`; `acceptance`: joint rates over all biomarkers;
+    /// `clusters`: per cluster (atlas) `{cluster, count, share, acceptance, biomarkers}`.
     #[schema(value_type = Object)]
     pub report: serde_json::Value,
-    /// `{index, draw, biomarkers, accepted: {range, mode, mean}}` per member.
+    /// `{index, draw, cluster, biomarkers, accepted: {range, mode, mean},
+    /// nearest_training_mm, nearest_training_mesh_id, near_copy}` per member.
     #[schema(value_type = Vec<Object>)]
     pub members: Vec<serde_json::Value>,
     /// Creation time (RFC 3339, UTC).
@@ -125,6 +125,7 @@ fn member_summary(m: &Member, training_ids: &[String]) -> serde_json::Value {
     serde_json::json!({
         "index": m.index,
         "draw": m.draw,
+        "cluster": m.cluster,
         "biomarkers": biomarkers,
         "accepted": m.accepted,
         "nearest_training_mm": m.nearest_training.distance_mm,
@@ -183,11 +184,8 @@ async fn create_cohort(
     };
     let (members, report) = tokio::task::spawn_blocking(move || {
         let shapes = stored.training.normalised_f64();
-        let training = TrainingIndex {
-            shapes: CorrespondedShapes::new(&shapes).map_err(ModelError::from)?,
-            privacy: &stored.training.privacy,
-        };
-        sample_cohort(stored.model.shape_model(), &reference, &training, &spec)
+        let training = TrainingIndex::new(&shapes, &stored.training.privacy)?;
+        sample_cohort(stored.model.as_ref(), &reference, &training, &spec)
     })
     .await
     .map_err(|e| ApiError::internal(e.to_string()))?

@@ -86,6 +86,19 @@ impl ApiError {
         )
     }
 
+    /// A stored model that cannot be read: 409 `model.unsupported_version` when another
+    /// release wrote it in a format this one does not read, 500 when it is damaged.
+    pub fn unreadable_model(id: &str, err: crate::models::ModelError) -> Self {
+        match err {
+            crate::models::ModelError::UnsupportedVersion { .. } => Self::new(
+                StatusCode::CONFLICT,
+                err.code(),
+                format!("model {id}: {err}"),
+            ),
+            other => Self::internal(format!("model {id}: {other}")),
+        }
+    }
+
     /// 404 for a path that matches no route.
     pub fn no_route() -> Self {
         Self::new(

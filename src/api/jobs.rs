@@ -11,9 +11,8 @@ use utoipa_axum::routes;
 use super::AppState;
 use super::error::{ApiError, Problem};
 use super::extract::{Json, PageQuery, Paginated, Path, Query};
-use crate::jobs::ModelParams;
 use crate::jobs::split::holdout_split;
-use crate::models::{ModelError, ModelType, rsmp};
+use crate::models::{ModelError, ModelParams, ModelType};
 use crate::store::jobs::{Job, JobStatus, NewJob};
 
 /// Default share of meshes held out for evaluation.
@@ -39,7 +38,7 @@ pub(super) fn router() -> OpenApiRouter<AppState> {
 pub struct SubmitJob {
     /// Dataset to fit.
     pub dataset_id: String,
-    /// Model type: `rsmp` or `asmg`.
+    /// Model type: `rsmp`, `asmg` or `atlas-r-asmg`.
     #[schema(example = "rsmp")]
     pub model_type: String,
     /// Model parameters; omitted ones take their defaults (see the model's documentation).
@@ -146,9 +145,10 @@ async fn check_dataset(
         ));
     }
     let (training, _) = holdout_split(&ids, holdout, body.seed, template);
-    if training.len() < rsmp::MIN_TRAINING_MESHES {
+    let required = params.model_type().min_training_meshes();
+    if training.len() < required {
         return Err(model_error(ModelError::TooFewMeshes {
-            required: rsmp::MIN_TRAINING_MESHES,
+            required,
             found: training.len(),
         }));
     }
@@ -173,18 +173,9 @@ async fn submit_job(
     Json(body): Json<SubmitJob>,
 ) -> Result<(StatusCode, HeaderMap, Json<Job>), ApiError> {
     let key = idempotency_key(&headers)?;
-    let model_type = ModelType::from_name(&body.model_type).ok_or_else(|| {
-        let known: Vec<&str> = ModelType::ALL.iter().map(|t| t.as_str()).collect();
-        ApiError::invalid_field(
-            "model_type",
-            format!(
-                "model_type '{}' is not known; use one of: {}",
-                body.model_type,
-                known.join(", ")
-            ),
-        )
-    })?;
-    let params = ModelParams::parse(model_type, &body.params).map_err(model_error)?;
+    let model_type = ModelType::parse_name(&body.model_type)
+        .map_err(|e| ApiError::invalid_field("model_type", e.to_string()))?;
+    let params = model_type.parse_params(&body.params).map_err(model_error)?;
     let holdout = body.holdout_fraction.unwrap_or(DEFAULT_HOLDOUT_FRACTION);
     if !(0.0..=MAX_HOLDOUT_FRACTION).contains(&holdout) {
         return Err(ApiError::invalid_field(

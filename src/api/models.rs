@@ -1,4 +1,5 @@
-//! `/v1/models`: fitted models with provenance and evaluation; atlas download.
+//! `/v1/models`: fitted models with provenance and evaluation; atlases listed and
+//! downloaded.
 
 use axum::extract::State;
 use axum::http::StatusCode;
@@ -21,6 +22,8 @@ pub(super) fn router() -> OpenApiRouter<AppState> {
         .routes(routes!(list_models))
         .routes(routes!(get_model, delete_model))
         .routes(routes!(download_atlas))
+        .routes(routes!(list_atlases))
+        .routes(routes!(download_atlas_at))
 }
 
 /// A fitted model.
@@ -41,9 +44,11 @@ pub struct ModelView {
     pub job_id: String,
     /// Training and held-out meshes with their checksums.
     pub provenance: Provenance,
-    /// The atlas (template): `{vertex_count, face_count}`.
+    /// The first atlas (template): `{index, vertex_count, face_count, euler_characteristic}`.
     #[schema(value_type = Object)]
     pub atlas: serde_json::Value,
+    /// Every atlas (one for single-atlas models), each with its own connectivity.
+    pub atlases: Vec<AtlasView>,
     /// Quality in mm: `generalisation`, `specificity`, `matching`, each `{hd, ed, ed_star, cd}`
     /// of `{mean, std}`; generalisation and matching on the held-out meshes.
     #[schema(value_type = Object)]
@@ -67,6 +72,51 @@ pub struct ModelView {
     pub created_at: String,
 }
 
+/// One atlas of a model.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct AtlasView {
+    /// Position among the model's atlases, from 0 (the cluster index of its members).
+    pub index: usize,
+    /// Vertices.
+    pub vertex_count: usize,
+    /// Triangles.
+    pub face_count: usize,
+    /// V − E + F: 2 for a closed genus-0 surface, 0 for genus 1; absent for models stored
+    /// before it was recorded.
+    pub euler_characteristic: Option<i64>,
+    /// Where to download it (`?format=obj|stl|ply|vtk`).
+    pub href: String,
+}
+
+/// The atlases recorded in a model's summary (models stored before several atlases existed
+/// record only `atlas`).
+fn atlases_of(id: &str, summary: &serde_json::Value) -> Vec<AtlasView> {
+    let listed = summary
+        .get("atlases")
+        .and_then(serde_json::Value::as_array)
+        .filter(|a| !a.is_empty())
+        .cloned()
+        .or_else(|| summary.get("atlas").map(|a| vec![a.clone()]))
+        .unwrap_or_default();
+    listed
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            let count =
+                |k: &str| a.get(k).and_then(serde_json::Value::as_u64).unwrap_or(0) as usize;
+            AtlasView {
+                index: i,
+                vertex_count: count("vertex_count"),
+                face_count: count("face_count"),
+                euler_characteristic: a
+                    .get("euler_characteristic")
+                    .and_then(serde_json::Value::as_i64),
+                href: format!("/v1/models/{id}/atlases/{i}"),
+            }
+        })
+        .collect()
+}
+
 impl From<ModelRecord> for ModelView {
     fn from(r: ModelRecord) -> Self {
         let field = |name: &str| {
@@ -76,6 +126,7 @@ impl From<ModelRecord> for ModelView {
                 .unwrap_or(serde_json::Value::Null)
         };
         Self {
+            atlases: atlases_of(&r.id, &r.summary),
             atlas: field("atlas"),
             evaluation: field("evaluation"),
             explained_variance: field("explained_variance"),
@@ -173,11 +224,11 @@ pub(super) async fn load_model(
     let model = tokio::task::spawn_blocking(move || StoredModel::from_bytes(&payload))
         .await
         .map_err(|e| ApiError::internal(e.to_string()))?
-        .map_err(|e| ApiError::internal(format!("model {id}: {e}")))?;
+        .map_err(|e| ApiError::unreadable_model(id, e))?;
     Ok((model, reference))
 }
 
-/// Download the model's atlas (template) mesh.
+/// Download the model's first atlas (template) mesh: the same as `/atlases/0`.
 #[utoipa::path(
     get, path = "/v1/models/{id}/atlas", tag = "models",
     params(("id" = String, Path, description = "Model id"), FormatQuery),
@@ -186,6 +237,7 @@ pub(super) async fn load_model(
             (MeshFile = "model/obj"), (MeshFile = "model/stl"),
             (MeshFile = "application/x-ply"), (MeshFile = "application/vnd.vtk"))),
         (status = 404, description = "No such model", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The model was stored in a format this release does not read", body = Problem, content_type = "application/problem+json"),
     )
 )]
 async fn download_atlas(
@@ -193,8 +245,70 @@ async fn download_atlas(
     Path(id): Path<String>,
     Query(q): Query<FormatQuery>,
 ) -> Result<Response, ApiError> {
+    atlas_response(&state, &id, 0, &q).await
+}
+
+/// The model's atlases: one per cluster, each with its own connectivity.
+#[utoipa::path(
+    get, path = "/v1/models/{id}/atlases", tag = "models",
+    params(("id" = String, Path, description = "Model id")),
+    responses(
+        (status = 200, description = "The atlases, in cluster order", body = Vec<AtlasView>),
+        (status = 404, description = "No such model", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn list_atlases(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Json<Vec<AtlasView>>, ApiError> {
+    let record = state.store.model(&id).await?;
+    Ok(Json(atlases_of(&record.id, &record.summary)))
+}
+
+/// Download atlas `m` of the model.
+#[utoipa::path(
+    get, path = "/v1/models/{id}/atlases/{m}", tag = "models",
+    params(("id" = String, Path, description = "Model id"), ("m" = u32, Path, description = "Atlas index, from 0"), FormatQuery),
+    responses(
+        (status = 200, description = "The atlas mesh", content(
+            (MeshFile = "model/obj"), (MeshFile = "model/stl"),
+            (MeshFile = "application/x-ply"), (MeshFile = "application/vnd.vtk"))),
+        (status = 404, description = "No such model or atlas", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The model was stored in a format this release does not read", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn download_atlas_at(
+    State(state): State<AppState>,
+    Path((id, m)): Path<(String, u32)>,
+    Query(q): Query<FormatQuery>,
+) -> Result<Response, ApiError> {
+    atlas_response(&state, &id, m as usize, &q).await
+}
+
+async fn atlas_response(
+    state: &AppState,
+    id: &str,
+    m: usize,
+    q: &FormatQuery,
+) -> Result<Response, ApiError> {
     let format = q.format()?;
-    let (model, _) = load_model(&state, &id).await?;
-    let bytes = mesh::io::write(model.model.shape_model().atlas(), format);
-    Ok(mesh_file_response(&format!("atlas_{id}"), format, bytes))
+    let (model, _) = load_model(state, id).await?;
+    let atlases = model.model.atlases();
+    let atlas = atlases.get(m).ok_or_else(|| {
+        ApiError::new(
+            StatusCode::NOT_FOUND,
+            "atlas.not_found",
+            format!(
+                "model {id} has {} atlas(es), numbered from 0; atlas {m} does not exist",
+                atlases.len()
+            ),
+        )
+    })?;
+    let bytes = mesh::io::write(atlas, format);
+    let name = if m == 0 {
+        format!("atlas_{id}")
+    } else {
+        format!("atlas_{m}_{id}")
+    };
+    Ok(mesh_file_response(&name, format, bytes))
 }

@@ -15,7 +15,6 @@ use super::progress::StderrProgress;
 use super::{CliResult, write_json};
 use crate::eval::SummaryStats;
 use crate::eval::fidelity::Fidelity;
-use crate::eval::privacy::CorrespondedShapes;
 use crate::geometry::pca::Sampling;
 use crate::jobs::fit::fit_model;
 use crate::mesh::measures::volume_ml;
@@ -183,7 +182,7 @@ fn bench_model(
         memory: fit_memory,
     };
     let stored = &outcome.model;
-    let model = stored.model.shape_model();
+    let model = stored.model.as_ref();
     let aligned = stored.training.to_f64();
 
     eprintln!("{name}: sampling a cohort of {}", args.cohort_size);
@@ -199,10 +198,7 @@ fn bench_model(
     let normalised = stored.training.normalised_f64();
     let started = Instant::now();
     let (cohort, cohort_memory) = memory::measure(|| -> Result<_, ModelError> {
-        let index = TrainingIndex {
-            shapes: CorrespondedShapes::new(&normalised)?,
-            privacy: &stored.training.privacy,
-        };
+        let index = TrainingIndex::new(&normalised, &stored.training.privacy)?;
         sample_cohort(model, &outcome.reference, &index, &spec)
     });
     let (members, report) = cohort.map_err(|e| e.to_string())?;

@@ -1,22 +1,26 @@
 //! The model file written by `cohortforge fit` and read by `cohortforge evaluate`: one
-//! binary file (postcard after a magic header) holding the model type, its parameters, the
-//! seed, the summary, the reference population, the training meshes' faces (for
-//! point-to-surface specificity) and the stored model.
+//! binary file (a magic header with the format version, then MessagePack with named fields)
+//! holding the model type, its parameters, the seed, the summary, the reference population,
+//! the training meshes' faces (for point-to-surface specificity) and the stored model (with
+//! its own format version, see [`crate::models::stored`]).
 //!
 //! JSON-shaped parts (parameters, summary, reference population) are kept as JSON text,
-//! since postcard cannot hold `serde_json::Value` and JSON text stays readable across
-//! versions of those structures.
+//! which stays readable across versions of those structures.
 
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::jobs::ModelParams;
-use crate::models::{FitOutcome, ModelError, ModelSummary, ModelType, ReferencePopulation};
-use crate::models::{StoredModel, TrainingShapes};
+use crate::models::stored::{decode_named, encode_named};
+use crate::models::{FitOutcome, ModelError, ModelParams, ModelSummary, ModelType};
+use crate::models::{ReferencePopulation, StoredModel, TrainingShapes};
 
-/// First bytes of every model file: a name and the format version.
-pub const MAGIC: &[u8; 8] = b"CFMODEL\x01";
+/// First bytes of every model file: a name, then the format version byte.
+pub const MAGIC_NAME: &[u8; 7] = b"CFMODEL";
+/// The file format this release writes.
+pub const FILE_VERSION: u8 = 2;
+/// The file formats this release reads.
+pub const SUPPORTED_FILE_VERSIONS: &[u8] = &[2];
 
 /// Why a model file could not be written or read.
 #[derive(Debug, thiserror::Error)]
@@ -65,6 +69,7 @@ pub struct ModelFile {
     /// stored model vertex for vertex.
     pub training_faces: Vec<Vec<[u32; 3]>>,
     /// [`StoredModel::to_bytes`].
+    #[serde(with = "serde_bytes")]
     pub model_bytes: Vec<u8>,
 }
 
@@ -83,13 +88,12 @@ impl ModelFile {
     /// Describes a finished fit.
     pub fn new(
         params: &ModelParams,
-        model_type: ModelType,
         seed: u64,
         outcome: &FitOutcome,
         inputs: &FitInputs<'_>,
     ) -> Result<Self, ModelFileError> {
         Ok(Self {
-            model_type: model_type.as_str().to_owned(),
+            model_type: params.model_type().as_str().to_owned(),
             params_json: params.to_json().to_string(),
             seed,
             summary_json: serde_json::to_string(&outcome.summary).map_err(corrupt)?,
@@ -101,19 +105,31 @@ impl ModelFile {
         })
     }
 
-    /// The file's bytes: [`MAGIC`] then postcard.
+    /// The file's bytes: [`MAGIC_NAME`], [`FILE_VERSION`], then the named-field encoding.
     pub fn to_bytes(&self) -> Result<Vec<u8>, ModelFileError> {
-        let mut bytes = MAGIC.to_vec();
-        bytes.extend(postcard::to_stdvec(self).map_err(corrupt)?);
+        let mut bytes = MAGIC_NAME.to_vec();
+        bytes.push(FILE_VERSION);
+        bytes.extend(encode_named(self)?);
         Ok(bytes)
     }
 
-    /// From [`ModelFile::to_bytes`].
+    /// From [`ModelFile::to_bytes`] of this or an earlier supported release.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, ModelFileError> {
-        let body = bytes
-            .strip_prefix(MAGIC.as_slice())
+        let rest = bytes
+            .strip_prefix(MAGIC_NAME.as_slice())
             .ok_or(ModelFileError::NotAModelFile)?;
-        postcard::from_bytes(body).map_err(corrupt)
+        let (&version, body) = rest.split_first().ok_or(ModelFileError::NotAModelFile)?;
+        if !SUPPORTED_FILE_VERSIONS.contains(&version) {
+            return Err(ModelError::UnsupportedVersion {
+                found: Some(u16::from(version)),
+                supported: SUPPORTED_FILE_VERSIONS
+                    .iter()
+                    .map(|&v| u16::from(v))
+                    .collect(),
+            }
+            .into());
+        }
+        decode_named(body).map_err(corrupt)
     }
 
     /// Writes the file.
@@ -135,8 +151,7 @@ impl ModelFile {
 
     /// The parameters, checked again for this build.
     pub fn params(&self) -> Result<ModelParams, ModelFileError> {
-        let model_type = ModelType::from_name(&self.model_type)
-            .ok_or_else(|| corrupt(format!("unknown model type {}", self.model_type)))?;
+        let model_type = ModelType::parse_name(&self.model_type)?;
         let json: serde_json::Value = serde_json::from_str(&self.params_json).map_err(corrupt)?;
         Ok(ModelParams::parse(model_type, &json)?)
     }
@@ -194,7 +209,10 @@ mod tests {
 
     fn quick_params() -> ModelParams {
         let json = serde_json::json!({"cpd_max_iterations": 30, "multistart": false});
-        ModelParams::parse(ModelType::Rsmp, &json).unwrap()
+        ModelType::parse_name("rsmp")
+            .unwrap()
+            .parse_params(&json)
+            .unwrap()
     }
 
     fn fitted() -> ModelFile {
@@ -210,7 +228,7 @@ mod tests {
             holdout_names: &names[4..],
             training_faces: meshes[..4].iter().map(|m| m.faces.as_slice()).collect(),
         };
-        ModelFile::new(&params, ModelType::Rsmp, 9, &outcome, &inputs).unwrap()
+        ModelFile::new(&params, 9, &outcome, &inputs).unwrap()
     }
 
     #[test]
@@ -260,3 +278,7 @@ mod tests {
         ));
     }
 }
+
+#[cfg(test)]
+#[path = "model_file_fixture.rs"]
+mod fixture;

@@ -12,16 +12,14 @@ use super::progress::StderrProgress;
 use super::tables::{DISTANCES, MATCHING, acceptance_table, distance_table};
 use super::{CliResult, write_json};
 use crate::eval::metrics::DistanceSummary;
-use crate::eval::privacy::CorrespondedShapes;
 use crate::geometry::pca::Sampling;
-use crate::jobs::ModelParams;
 use crate::jobs::fit::fit_model;
 use crate::jobs::split::holdout_split;
 use crate::mesh::Mesh;
 use crate::models::cohort::{CohortReport, CohortSpec, Criterion, TrainingIndex, sample_cohort};
 use crate::models::evaluation::evaluate;
 use crate::models::progress::Stages;
-use crate::models::{Evaluation, ModelType, StageTiming};
+use crate::models::{Evaluation, ModelParams, ModelType, StageTiming};
 
 /// Column labels of the two ways distances are measured.
 pub const DISTANCE_KINDS: [&str; 2] = ["vertex-to-vertex", "point-to-surface"];
@@ -74,8 +72,10 @@ pub struct EvaluateArgs {
 /// Parses a model type name for clap.
 pub fn parse_model_type(s: &str) -> Result<ModelType, String> {
     ModelType::from_name(s).ok_or_else(|| {
-        let known: Vec<&str> = ModelType::ALL.iter().map(|t| t.as_str()).collect();
-        format!("unknown model type '{s}': use one of {}", known.join(", "))
+        format!(
+            "unknown model type '{s}': use one of {}",
+            ModelType::names().join(", ")
+        )
     })
 }
 
@@ -85,7 +85,7 @@ pub fn parse_params(model_type: ModelType, params: Option<&str>) -> Result<Model
         Some(text) => serde_json::from_str(text).map_err(|e| format!("--params: {e}"))?,
         None => serde_json::Value::Null,
     };
-    ModelParams::parse(model_type, &json).map_err(|e| e.to_string())
+    model_type.parse_params(&json).map_err(|e| e.to_string())
 }
 
 /// The file name that `template` names: itself or a name whose stem it is.
@@ -146,8 +146,7 @@ pub fn fit(args: &FitArgs) -> CliResult {
         holdout_names: &holdout_names,
         training_faces: training.iter().map(|m| m.faces.as_slice()).collect(),
     };
-    let file = ModelFile::new(&params, args.model, args.seed, &outcome, &inputs)
-        .map_err(|e| e.to_string())?;
+    let file = ModelFile::new(&params, args.seed, &outcome, &inputs).map_err(|e| e.to_string())?;
     file.save(&args.out).map_err(|e| e.to_string())?;
     println!(
         "{}",
@@ -259,7 +258,7 @@ pub fn evaluate_model(args: &EvaluateArgs) -> CliResult {
         return Err("--samples must be at least 1".to_owned());
     }
     let seed = args.seed.unwrap_or(file.seed);
-    let model = stored.model.shape_model();
+    let model = stored.model.as_ref();
     let aligned = stored.training.to_f64();
     let faces: Vec<&[[u32; 3]]> = file.training_faces.iter().map(Vec::as_slice).collect();
     let test_meshes: Vec<Mesh> = test.iter().map(|m| m.mesh.clone()).collect();
@@ -283,10 +282,8 @@ pub fn evaluate_model(args: &EvaluateArgs) -> CliResult {
 
     let step = Instant::now();
     let normalised = stored.training.normalised_f64();
-    let index = TrainingIndex {
-        shapes: CorrespondedShapes::new(&normalised).map_err(|e| e.to_string())?,
-        privacy: &stored.training.privacy,
-    };
+    let index =
+        TrainingIndex::new(&normalised, &stored.training.privacy).map_err(|e| e.to_string())?;
     let spec = CohortSpec {
         size: samples,
         seed,

@@ -1,10 +1,9 @@
-//! The one dispatch from validated parameters to a model type's fit, shared by fit jobs and
-//! the offline `fit` and `bench` commands.
+//! The one entry from validated parameters to a fit, shared by fit jobs and the offline
+//! `fit` and `bench` commands.
 
-use super::params::ModelParams;
 use crate::mesh::Mesh;
 use crate::models::progress::Progress;
-use crate::models::{FitOutcome, ModelError, asmg, rsmp};
+use crate::models::{FitInput, FitOutcome, ModelError, ModelParams};
 
 /// Fits the model that `params` describe to `training` and evaluates it on `holdout`.
 ///
@@ -18,8 +17,11 @@ pub fn fit_model(
     seed: u64,
     progress: &mut dyn Progress,
 ) -> Result<FitOutcome, ModelError> {
-    match params {
-        ModelParams::Rsmp(p) => rsmp::fit(training, holdout, p, template_index, seed, progress),
-        ModelParams::Asmg(p) => asmg::fit(training, holdout, p, template_index, seed, progress),
-    }
+    let input = FitInput {
+        training,
+        holdout,
+        template_index,
+        seed,
+    };
+    params.fit(&input, progress)
 }

@@ -3,7 +3,6 @@
 use tokio::runtime::Handle;
 
 use super::fit::fit_model;
-use super::params::ModelParams;
 use super::split::holdout_split;
 use crate::mesh::Mesh;
 use crate::models::progress::Progress;
@@ -90,7 +89,7 @@ pub fn run_job(
 ) -> Result<NewModel, RunError> {
     let model_type = ModelType::from_name(&job.model_type)
         .ok_or_else(|| RunError::Invalid(format!("unknown model type {}", job.model_type)))?;
-    let params = ModelParams::parse(model_type, &job.params)?;
+    let params = model_type.parse_params(&job.params)?;
     let split = load_split(handle, store, job, params.template_mesh_id())?;
     let outcome: FitOutcome = fit_model(
         &params,

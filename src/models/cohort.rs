@@ -7,6 +7,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use super::clusters::{ClusterReport, cluster_reports};
 use super::{ModelError, ReferencePopulation, ShapeModel};
 use crate::eval::Biomarkers;
 use crate::eval::acceptance::{Flags, Intervals, Rates, ReferenceStats, joint_acceptance_rates};
@@ -74,8 +75,10 @@ pub struct Member {
     pub index: usize,
     /// Draw number it came from (equal to `index` unless members were rejected).
     pub draw: u64,
-    /// The shape (mm, the model's connectivity).
+    /// The shape (mm, the connectivity of its cluster's atlas).
     pub mesh: Mesh,
+    /// The cluster (atlas) it was drawn from; 0 for single-atlas models.
+    pub cluster: usize,
     /// Its biomarkers.
     pub biomarkers: Biomarkers,
     /// Accepted on every biomarker, per criterion.
@@ -114,13 +117,22 @@ pub struct CohortReport {
     pub draw_acceptance: Rates,
     /// The privacy guard: threshold and how many members are near copies.
     pub privacy: PrivacyReport,
+    /// Per cluster (atlas): count, share, acceptance and biomarker statistics of its
+    /// members; one row for single-atlas models.
+    #[serde(default)]
+    pub clusters: Vec<ClusterReport>,
 }
 
 /// Privacy part of a cohort report.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct PrivacyReport {
-    /// Members nearer than this (mm) to a training shape are near copies.
+    /// Members nearer than this (mm) to a training shape are near copies (atlas 0's
+    /// threshold; see `thresholds_mm` for each atlas).
     pub threshold_mm: f64,
+    /// The threshold of each atlas, mm: members of cluster `m` are compared with the
+    /// training shapes normalised to atlas `m`.
+    #[serde(default)]
+    pub thresholds_mm: Vec<f64>,
     /// Percentile of the training nearest-neighbour distances used as the threshold.
     pub percentile: f64,
     /// How the distance is measured.
@@ -153,35 +165,85 @@ fn joint_flags(intervals: &[Intervals], biomarkers: &Biomarkers) -> Flags {
 /// Draws evaluated together (in parallel, then taken in draw order).
 const DRAW_BATCH: u64 = 32;
 
-/// One draw: its shape, biomarkers, acceptance and nearest training shape.
-type Draw = (Mesh, Biomarkers, Flags, NearestTraining);
-
-fn evaluate_draw(
-    model: &dyn ShapeModel,
-    intervals: &[Intervals],
-    training: &CorrespondedShapes<'_>,
-    spec: &CohortSpec,
-    draw: u64,
-) -> Result<Draw, ModelError> {
-    let mesh = model.sample(&mut draw_rng(spec.seed, draw), spec.sampling)?;
-    let biomarkers = Biomarkers::from_mesh(&mesh)?;
-    let accepted = joint_flags(intervals, &biomarkers);
-    let nearest = training.nearest(&mesh.vertices)?;
-    Ok((mesh, biomarkers, accepted, nearest))
+/// One draw evaluated.
+struct Evaluated {
+    mesh: Mesh,
+    cluster: usize,
+    biomarkers: Biomarkers,
+    accepted: Flags,
+    nearest: NearestTraining,
+    near_copy: bool,
 }
 
-/// The training shapes a cohort is checked against.
+fn evaluate_draw<M: ShapeModel + ?Sized>(
+    model: &M,
+    intervals: &[Intervals],
+    training: &TrainingIndex<'_>,
+    spec: &CohortSpec,
+    draw: u64,
+) -> Result<Evaluated, ModelError> {
+    let sampled = model.sample(&mut draw_rng(spec.seed, draw), spec.sampling)?;
+    let (shapes, privacy) = training.of_cluster(sampled.cluster)?;
+    let biomarkers = Biomarkers::from_mesh(&sampled.mesh)?;
+    let accepted = joint_flags(intervals, &biomarkers);
+    let nearest = shapes.nearest(&sampled.mesh.vertices)?;
+    Ok(Evaluated {
+        near_copy: nearest.distance_mm < privacy.threshold_mm,
+        mesh: sampled.mesh,
+        cluster: sampled.cluster,
+        biomarkers,
+        accepted,
+        nearest,
+    })
+}
+
+/// The training shapes a cohort is checked against, per atlas.
 pub struct TrainingIndex<'a> {
-    /// The training shapes' normalised shapes, in correspondence with the members (model
-    /// frame, mm).
-    pub shapes: CorrespondedShapes<'a>,
-    /// Near-copy threshold.
-    pub privacy: &'a PrivacyThreshold,
+    /// `shapes[m]`: the training shapes normalised to atlas `m`, in correspondence with the
+    /// members of cluster `m` (model frame, mm).
+    pub shapes: Vec<CorrespondedShapes<'a>>,
+    /// Near-copy threshold of each atlas.
+    pub privacy: &'a [PrivacyThreshold],
+}
+
+impl<'a> TrainingIndex<'a> {
+    /// From the training shapes normalised to each atlas (`[atlas][shape]`) and the
+    /// thresholds of each atlas.
+    pub fn new(
+        normalised: &'a [Vec<Vec<[f64; 3]>>],
+        privacy: &'a [PrivacyThreshold],
+    ) -> Result<Self, ModelError> {
+        if normalised.len() != privacy.len() {
+            return Err(ModelError::InvalidInput(format!(
+                "{} atlases of training shapes but {} privacy thresholds",
+                normalised.len(),
+                privacy.len()
+            )));
+        }
+        let shapes = normalised
+            .iter()
+            .map(|s| CorrespondedShapes::new(s))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self { shapes, privacy })
+    }
+
+    fn of_cluster(
+        &self,
+        cluster: usize,
+    ) -> Result<(&CorrespondedShapes<'a>, &PrivacyThreshold), ModelError> {
+        match (self.shapes.get(cluster), self.privacy.get(cluster)) {
+            (Some(s), Some(p)) => Ok((s, p)),
+            _ => Err(ModelError::InvalidInput(format!(
+                "a draw of cluster {cluster} but training shapes for {} atlases",
+                self.shapes.len()
+            ))),
+        }
+    }
 }
 
 /// Draws a cohort and its report.
-pub fn sample_cohort(
-    model: &(dyn ShapeModel + Sync),
+pub fn sample_cohort<M: ShapeModel + Sync + ?Sized>(
+    model: &M,
     reference: &ReferencePopulation,
     training: &TrainingIndex<'_>,
     spec: &CohortSpec,
@@ -199,29 +261,29 @@ pub fn sample_cohort(
         let wanted = (spec.size - members.len()) as u64;
         let batch: Vec<u64> = (next..limit.min(next + wanted.max(DRAW_BATCH))).collect();
         let evaluated = parallel_map(&batch, |&d| {
-            evaluate_draw(model, &intervals, &training.shapes, spec, d)
+            evaluate_draw(model, &intervals, training, spec, d)
         });
         for (draw, result) in batch.iter().zip(evaluated) {
             next = draw + 1;
-            let (mesh, biomarkers, accepted, nearest_training) = result?;
-            let near_copy = nearest_training.distance_mm < training.privacy.threshold_mm;
-            all_draws.push(biomarkers);
-            if spec.exclude_near_copies && near_copy {
+            let e = result?;
+            all_draws.push(e.biomarkers);
+            if spec.exclude_near_copies && e.near_copy {
                 replaced += 1;
                 continue;
             }
-            if spec.only_accepted && !spec.criterion.passes(accepted) {
+            if spec.only_accepted && !spec.criterion.passes(e.accepted) {
                 continue;
             }
             let index = members.len();
             members.push(Member {
                 index,
                 draw: *draw,
-                mesh,
-                biomarkers,
-                accepted,
-                nearest_training,
-                near_copy,
+                mesh: e.mesh,
+                cluster: e.cluster,
+                biomarkers: e.biomarkers,
+                accepted: e.accepted,
+                nearest_training: e.nearest,
+                near_copy: e.near_copy,
             });
             if members.len() == spec.size {
                 break;
@@ -236,18 +298,22 @@ pub fn sample_cohort(
             criterion: spec.criterion.as_str(),
         });
     }
+    let first = training.of_cluster(0)?.1;
     let privacy = PrivacyReport {
-        threshold_mm: training.privacy.threshold_mm,
-        percentile: training.privacy.percentile,
+        threshold_mm: first.threshold_mm,
+        thresholds_mm: training.privacy.iter().map(|p| p.threshold_mm).collect(),
+        percentile: first.percentile,
         distance: "mean distance between corresponding vertices".to_owned(),
         near_copies: members.iter().filter(|m| m.near_copy).count(),
         near_copies_replaced: replaced,
     };
-    let report = report(reference, &intervals, &members, &all_draws, privacy)?;
+    let mut report = report(reference, &intervals, &members, &all_draws, privacy)?;
+    report.clusters = cluster_reports(reference, &intervals, &members, model.atlases().len())?;
     Ok((members, report))
 }
 
-fn columns(biomarkers: &[&Biomarkers]) -> Vec<Vec<f64>> {
+/// `columns[b][k]`: biomarker `b` of the `k`-th of `biomarkers`.
+pub(crate) fn columns(biomarkers: &[&Biomarkers]) -> Vec<Vec<f64>> {
     (0..Biomarkers::NAMES.len())
         .map(|b| biomarkers.iter().map(|m| m.values()[b]).collect())
         .collect()
@@ -281,6 +347,7 @@ fn report(
         draws: all_draws.len(),
         draw_acceptance: joint_acceptance_rates(intervals, &draw_columns)?,
         privacy,
+        clusters: Vec::new(),
     })
 }
 
@@ -288,23 +355,23 @@ fn report(
 mod tests {
     use super::*;
     use crate::mesh::phantom::{self, Family};
-    use crate::models::{ModelError, Reconstruction};
+    use crate::models::{Draw, ModelError, Reconstruction};
 
     /// Hands out training shape 0 on even draws and a 20% larger copy of it on odd draws.
     struct Copier(Vec<Mesh>);
 
     impl ShapeModel for Copier {
-        fn atlas(&self) -> &Mesh {
-            &self.0[0]
+        fn atlases(&self) -> &[Mesh] {
+            &self.0[..1]
         }
-        fn sample(&self, rng: &mut ChaCha8Rng, _: Sampling) -> Result<Mesh, ModelError> {
+        fn sample(&self, rng: &mut ChaCha8Rng, _: Sampling) -> Result<Draw, ModelError> {
             let mut mesh = self.0[0].clone();
             if rng.get_stream() % 2 == 1 {
                 mesh.vertices
                     .iter_mut()
                     .for_each(|p| *p = p.map(|c| 1.2 * c));
             }
-            Ok(mesh)
+            Ok(Draw { mesh, cluster: 0 })
         }
         fn reconstruct(&self, _: &Mesh) -> Result<Reconstruction, ModelError> {
             unreachable!("not used by cohorts")
@@ -325,14 +392,18 @@ mod tests {
             .collect()
     }
 
-    /// The meshes' vertices as corresponding training shapes, and their privacy threshold.
-    fn privacy_of(meshes: &[Mesh]) -> (Vec<Vec<[f64; 3]>>, PrivacyThreshold) {
+    /// The meshes' vertices as corresponding training shapes of one atlas, and their
+    /// privacy threshold.
+    /// Training shapes per atlas, `[atlas][shape][vertex]`.
+    type PerAtlas = Vec<Vec<Vec<[f64; 3]>>>;
+
+    fn privacy_of(meshes: &[Mesh]) -> (PerAtlas, Vec<PrivacyThreshold>) {
         let shapes: Vec<Vec<[f64; 3]>> = meshes.iter().map(|m| m.vertices.clone()).collect();
         let privacy = CorrespondedShapes::new(&shapes)
             .unwrap()
             .privacy_threshold(0.05)
             .unwrap();
-        (shapes, privacy)
+        (vec![shapes], vec![privacy])
     }
 
     fn spec(size: usize, exclude_near_copies: bool) -> CohortSpec {
@@ -352,10 +423,7 @@ mod tests {
         // In their canonical frame, as after pre-alignment.
         let meshes = scaled_copies(Family::Liver, 8);
         let (shapes, privacy) = privacy_of(&meshes);
-        let training = TrainingIndex {
-            shapes: CorrespondedShapes::new(&shapes).unwrap(),
-            privacy: &privacy,
-        };
+        let training = TrainingIndex::new(&shapes, &privacy).unwrap();
         let reference = ReferencePopulation::from_meshes(&meshes).unwrap();
         let model = Copier(meshes.clone());
 
@@ -370,9 +438,18 @@ mod tests {
             }
         );
         assert!(
-            !members[1].near_copy && members[1].nearest_training.distance_mm > privacy.threshold_mm
+            !members[1].near_copy
+                && members[1].nearest_training.distance_mm > privacy[0].threshold_mm
         );
         assert_eq!(report.privacy.near_copies, 2);
+        // A single-atlas model: every member in cluster 0, one cluster row for all of them.
+        assert!(members.iter().all(|m| m.cluster == 0));
+        assert_eq!(report.clusters.len(), 1);
+        assert_eq!(
+            (report.clusters[0].count, report.clusters[0].share),
+            (4, 1.0)
+        );
+        assert_eq!(report.clusters[0].acceptance, Some(report.acceptance));
 
         let (members, report) =
             sample_cohort(&model, &reference, &training, &spec(3, true)).unwrap();
@@ -385,10 +462,7 @@ mod tests {
     fn acceptance_filter_and_its_bound() {
         let meshes = scaled_copies(Family::Lv, 2);
         let (shapes, privacy) = privacy_of(&meshes);
-        let training = TrainingIndex {
-            shapes: CorrespondedShapes::new(&shapes).unwrap(),
-            privacy: &privacy,
-        };
+        let training = TrainingIndex::new(&shapes, &privacy).unwrap();
         let reference = ReferencePopulation::from_meshes(&meshes).unwrap();
         let model = Copier(meshes.clone());
         let only = CohortSpec {

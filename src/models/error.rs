@@ -51,6 +51,27 @@ pub enum ModelError {
     /// The job was cancelled.
     #[error(transparent)]
     Cancelled(#[from] Cancelled),
+    /// A stored model was written in a format this release does not read.
+    #[error(
+        "the stored model is in {}, but this release reads format {}; \
+         fit the model again with this release",
+        .found.map_or("a format without a format version (written before format 2)".to_owned(), |v| format!("format {v}")),
+        .supported.iter().map(u16::to_string).collect::<Vec<_>>().join(", ")
+    )]
+    UnsupportedVersion {
+        /// The version found, `None` without a header.
+        found: Option<u16>,
+        /// The versions this release reads.
+        supported: Vec<u16>,
+    },
+    /// No model type has this name.
+    #[error("model_type '{name}' is not known; use one of: {known}")]
+    UnknownModelType {
+        /// The name given.
+        name: String,
+        /// The known names, comma-separated.
+        known: String,
+    },
     /// A stored model could not be decoded.
     #[error("stored model is corrupt: {0}")]
     Corrupt(String),
@@ -73,6 +94,8 @@ impl ModelError {
             Self::Eval(e) => e.code(),
             Self::Cancelled(_) => "job.cancelled",
             Self::Corrupt(_) => "model.corrupt",
+            Self::UnsupportedVersion { .. } => "model.unsupported_version",
+            Self::UnknownModelType { .. } => "model.unknown_type",
             Self::InvalidInput(_) => "model.invalid_input",
             Self::Numerical(_) => "model.numerical",
         }

@@ -78,10 +78,11 @@ pub fn evaluate(
 ) -> Result<Evaluation, ModelError> {
     let total = (holdout.len() + samples) as u64;
     let mut reconstructions: Vec<Mesh> = Vec::with_capacity(holdout.len());
-    let (mut originals, mut normalised) = (Vec::new(), Vec::new());
+    let (mut originals, mut normalised, mut atlas_of) = (Vec::new(), Vec::new(), Vec::new());
     for (i, mesh) in holdout.iter().enumerate() {
         let r = model.reconstruct(mesh)?;
         reconstructions.push(r.mesh);
+        atlas_of.push(r.atlas);
         originals.push(r.aligned_input);
         normalised.push(r.normalised);
         let message = format!("reconstructed held-out mesh {} of {}", i + 1, holdout.len());
@@ -90,7 +91,7 @@ pub fn evaluate(
     let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_add(SPECIFICITY_SEED_OFFSET));
     let mut generated = Vec::with_capacity(samples);
     for _ in 0..samples {
-        generated.push(model.sample(&mut rng, Sampling::Gaussian)?);
+        generated.push(model.sample(&mut rng, Sampling::Gaussian)?.mesh);
     }
     let training = IndexedShapes::new(aligned_training)?;
     let generated_vertices: Vec<&[[f64; 3]]> =
@@ -112,8 +113,17 @@ pub fn evaluate(
             Some(metrics::matching(&originals, &normalised)?),
         )
     };
+    let atlases = model.atlases();
+    let normalised_faces = atlas_of
+        .iter()
+        .map(|&m| {
+            atlases.get(m).map(|a| a.faces.as_slice()).ok_or_else(|| {
+                ModelError::InvalidInput(format!("a reconstruction names atlas {m}"))
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let surfaces = SurfaceInputs {
-        atlas_faces: &model.atlas().faces,
+        normalised_faces: &normalised_faces,
         reconstructions: &reconstructions,
         originals: &originals,
         normalised: &normalised,
@@ -142,7 +152,7 @@ pub fn evaluate(
 /// What the point-to-surface metrics compare; `reconstructions`, `originals`, `normalised`
 /// and `holdout` run in parallel, as do `generated` and `closest_training`.
 struct SurfaceInputs<'a> {
-    atlas_faces: &'a [[u32; 3]],
+    normalised_faces: &'a [&'a [[u32; 3]]],
     reconstructions: &'a [Mesh],
     originals: &'a [Vec<[f64; 3]>],
     normalised: &'a [Vec<[f64; 3]>],
@@ -190,10 +200,8 @@ impl SurfaceInputs<'_> {
         let normalised: Vec<Surface<'_>> = self
             .normalised
             .iter()
-            .map(|v| Surface {
-                vertices: v,
-                faces: self.atlas_faces,
-            })
+            .zip(self.normalised_faces)
+            .map(|(v, faces)| Surface { vertices: v, faces })
             .collect();
         Ok(SurfaceEvaluation {
             generalisation: Some(paired_point_to_surface(&reconstructions, &originals)?.summary),

@@ -1,17 +1,25 @@
 //! Shape models behind one interface: fit on training meshes, sample new shapes,
 //! reconstruct unseen ones. Pure: no async, SQL or HTTP.
 //!
-//! Model types: `rsmp` (rigid CPD + soft correspondences + PCA, thesis ch. 3) and `asmg`
-//! (graph VAE + attention correspondences + learned atlas + beta-VAE, thesis ch. 4).
+//! Model types (listed once, in [`registry`]): `rsmp` (rigid CPD + soft correspondences +
+//! PCA, thesis ch. 3), `asmg` (graph VAE + attention correspondences + learned atlas +
+//! beta-VAE, thesis ch. 4) and `atlas-r-asmg` (the same trained end to end with a refinement
+//! loss, thesis §5.2). A model has one or more atlases, each with its own connectivity; a
+//! draw says which atlas (cluster) it came from.
 
 pub mod alignment;
 pub mod asmg;
+pub mod atlas_r_asmg;
+pub mod clusters;
 pub mod cohort;
 mod error;
 pub mod evaluation;
+pub mod fitting;
 pub mod progress;
 pub mod reference;
+pub mod registry;
 pub mod rsmp;
+pub mod stored;
 pub mod workers;
 
 use rand_chacha::ChaCha8Rng;
@@ -19,81 +27,47 @@ use serde::{Deserialize, Serialize};
 
 pub use error::ModelError;
 pub use evaluation::Evaluation;
+pub use fitting::{FitInput, FittedParts};
 pub use reference::ReferencePopulation;
+pub use registry::{ModelFamily, ModelParams, ModelType};
+pub use stored::{FittedModel, StoredModel};
 
 use crate::eval::privacy::CorrespondedShapes;
 use crate::eval::privacy::PrivacyThreshold;
 use crate::geometry::pca::Sampling;
 use crate::mesh::Mesh;
 
-/// Kinds of shape model a job can fit.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ModelType {
-    /// Rigid CPD to a template, soft-correspondence normalisation, PCA.
-    Rsmp,
-    /// Graph VAE embeddings, attention correspondences, learned atlas, beta-VAE.
-    Asmg,
-}
-
-impl ModelType {
-    /// Every model type.
-    pub const ALL: [ModelType; 2] = [ModelType::Rsmp, ModelType::Asmg];
-
-    /// The name used in the API.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Rsmp => "rsmp",
-            Self::Asmg => "asmg",
-        }
-    }
-
-    /// From its API name.
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|t| t.as_str() == name)
-    }
-}
-
 /// A model's reconstruction of a mesh.
 #[derive(Debug, Clone)]
 pub struct Reconstruction {
-    /// The reconstructed shape: the model's connectivity, mm, model frame.
+    /// The reconstructed shape: the connectivity of atlas `atlas`, mm, model frame.
     pub mesh: Mesh,
-    /// The input's normalised shape (before projection), `[n_atlas_vertices, 3]`, mm.
+    /// Which of the model's atlases the reconstruction used.
+    pub atlas: usize,
+    /// The input's normalised shape on that atlas (before projection), `[N_μ, 3]`, mm.
     pub normalised: Vec<[f64; 3]>,
     /// The input's vertices moved into the model frame, `[n_vertices, 3]`, mm.
     pub aligned_input: Vec<[f64; 3]>,
 }
 
+/// One generated shape and the cluster (atlas) it was drawn from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Draw {
+    /// The shape: mm, model frame, the connectivity of atlas `cluster`.
+    pub mesh: Mesh,
+    /// Index of the atlas (0 for single-atlas models).
+    pub cluster: usize,
+}
+
 /// What every fitted model can do.
 pub trait ShapeModel {
-    /// The atlas (template) mesh in the model frame, mm.
-    fn atlas(&self) -> &Mesh;
-    /// Draws one new shape (mm, atlas connectivity).
-    fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Mesh, ModelError>;
+    /// The atlases (templates) in the model frame, mm: one or more, each with its own
+    /// connectivity.
+    fn atlases(&self) -> &[Mesh];
+    /// Draws one new shape.
+    fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Draw, ModelError>;
     /// Reconstructs an unseen mesh through the model.
     fn reconstruct(&self, mesh: &Mesh) -> Result<Reconstruction, ModelError>;
-}
-
-/// A fitted model of any type, as stored.
-// One value per loaded model, never kept in bulk: the size difference does not matter.
-#[allow(clippy::large_enum_variant)]
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub enum AnyModel {
-    /// See [`rsmp::RsmpModel`].
-    Rsmp(rsmp::RsmpModel),
-    /// See [`asmg::AsmgModel`].
-    Asmg(asmg::AsmgModel),
-}
-
-impl AnyModel {
-    /// The model behind the common interface.
-    pub fn shape_model(&self) -> &(dyn ShapeModel + Sync) {
-        match self {
-            Self::Rsmp(m) => m,
-            Self::Asmg(m) => m,
-        }
-    }
 }
 
 /// The training shapes in the model frame, kept with a model for the privacy guard and for
@@ -102,11 +76,12 @@ impl AnyModel {
 pub struct TrainingShapes {
     /// Vertices of each training mesh after pre-alignment, mm, `[n_vertices, 3]` each.
     pub shapes: Vec<Vec<[f32; 3]>>,
-    /// Each training mesh's normalised shape (in correspondence with the atlas), mm,
-    /// `[n_atlas_vertices, 3]` each: what cohort members are compared with.
-    pub normalised: Vec<Vec<[f32; 3]>>,
-    /// Near-copy threshold derived from the normalised shapes' nearest-neighbour distances.
-    pub privacy: PrivacyThreshold,
+    /// `normalised[m][k]`: training mesh `k` normalised to atlas `m` (in correspondence with
+    /// it), mm, `[N_μm, 3]`: what cohort members of cluster `m` are compared with.
+    pub normalised: Vec<Vec<Vec<[f32; 3]>>>,
+    /// Near-copy threshold of each atlas, from the nearest-neighbour distances of the
+    /// training shapes normalised to it.
+    pub privacy: Vec<PrivacyThreshold>,
 }
 
 fn to_f32(shapes: &[Vec<[f64; 3]>]) -> Vec<Vec<[f32; 3]>> {
@@ -124,17 +99,21 @@ fn to_f64(shapes: &[Vec<[f32; 3]>]) -> Vec<Vec<[f64; 3]>> {
 }
 
 impl TrainingShapes {
-    /// From aligned training vertices and their normalised shapes (model frame, mm); the
-    /// threshold is the `percentile` of the normalised shapes' nearest-neighbour distances.
+    /// From aligned training vertices and their normalised shapes per atlas (model frame,
+    /// mm); each atlas's threshold is the `percentile` of its normalised shapes'
+    /// nearest-neighbour distances.
     pub fn new(
         aligned: &[Vec<[f64; 3]>],
-        normalised: &[Vec<[f64; 3]>],
+        normalised: &[Vec<Vec<[f64; 3]>>],
         percentile: f64,
     ) -> Result<Self, ModelError> {
-        let privacy = CorrespondedShapes::new(normalised)?.privacy_threshold(percentile)?;
+        let privacy = normalised
+            .iter()
+            .map(|shapes| CorrespondedShapes::new(shapes)?.privacy_threshold(percentile))
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(Self {
             shapes: to_f32(aligned),
-            normalised: to_f32(normalised),
+            normalised: normalised.iter().map(|s| to_f32(s)).collect(),
             privacy,
         })
     }
@@ -144,40 +123,37 @@ impl TrainingShapes {
         to_f64(&self.shapes)
     }
 
-    /// The normalised shapes in f64.
-    pub fn normalised_f64(&self) -> Vec<Vec<[f64; 3]>> {
-        to_f64(&self.normalised)
-    }
-}
-
-/// What is stored for a model: the fitted model and its training shapes.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct StoredModel {
-    /// The fitted model.
-    pub model: AnyModel,
-    /// Training shapes and privacy threshold.
-    pub training: TrainingShapes,
-}
-
-impl StoredModel {
-    /// Compact binary form for storage.
-    pub fn to_bytes(&self) -> Result<Vec<u8>, ModelError> {
-        postcard::to_stdvec(self).map_err(|e| ModelError::Corrupt(e.to_string()))
-    }
-
-    /// From [`StoredModel::to_bytes`].
-    pub fn from_bytes(bytes: &[u8]) -> Result<Self, ModelError> {
-        postcard::from_bytes(bytes).map_err(|e| ModelError::Corrupt(e.to_string()))
+    /// The normalised shapes in f64, `[atlas][shape]`.
+    pub fn normalised_f64(&self) -> Vec<Vec<Vec<[f64; 3]>>> {
+        self.normalised.iter().map(|s| to_f64(s)).collect()
     }
 }
 
 /// Atlas facts reported with a model.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AtlasInfo {
+    /// Position among the model's atlases.
+    #[serde(default)]
+    pub index: usize,
     /// Vertices of the atlas.
     pub vertex_count: usize,
     /// Triangles of the atlas.
     pub face_count: usize,
+    /// V − E + F (2 for a sphere, 0 for a torus); absent in models stored before it was kept.
+    #[serde(default)]
+    pub euler_characteristic: Option<i64>,
+}
+
+impl AtlasInfo {
+    /// The facts of atlas `index`.
+    pub fn of(index: usize, atlas: &Mesh) -> Self {
+        Self {
+            index,
+            vertex_count: atlas.vertex_count(),
+            face_count: atlas.face_count(),
+            euler_characteristic: Some(crate::mesh::topology::euler_characteristic(atlas)),
+        }
+    }
 }
 
 /// Time spent in one stage of the fit.
@@ -206,8 +182,11 @@ impl StageTiming {
 /// Everything reported about a fitted model besides its parameters.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ModelSummary {
-    /// The atlas.
+    /// The first atlas (the only one of single-atlas models).
     pub atlas: AtlasInfo,
+    /// Every atlas, in order.
+    #[serde(default)]
+    pub atlases: Vec<AtlasInfo>,
     /// Quality on held-out and generated shapes.
     pub evaluation: Evaluation,
     /// Cumulative explained variance per mode (PCA models).

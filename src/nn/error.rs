@@ -64,6 +64,9 @@ pub enum NnError {
     /// Stored weights could not be read or do not fit the configuration.
     #[error("stored weights are unusable: {0}")]
     Weights(String),
+    /// A loss computed outside the network (the refinement objective) failed.
+    #[error("the refinement loss could not be computed: {0}")]
+    Objective(String),
 }
 
 impl NnError {
@@ -78,6 +81,7 @@ impl NnError {
             Self::InvalidConfig { .. } => "nn.invalid_config",
             Self::Diverged { .. } => "nn.diverged",
             Self::Cancelled => "nn.cancelled",
+            Self::Objective(_) => "nn.objective",
             Self::Weights(_) => "nn.weights",
         }
     }

@@ -223,6 +223,19 @@ impl GraphVae {
         graphs: usize,
         weights: LossWeights,
     ) -> Tensor<1> {
+        self.loss_and_mean(x, graph, noise, graphs, weights).0
+    }
+
+    /// [`GraphVae::loss`] and the encoder mean `[N, d_z]` it was computed from (for losses
+    /// on the embeddings, such as the refinement of Atlas-R-ASMG).
+    pub fn loss_and_mean(
+        &self,
+        x: Tensor<2>,
+        graph: &GraphTensors,
+        noise: Tensor<2>,
+        graphs: usize,
+        weights: LossWeights,
+    ) -> (Tensor<1>, Tensor<2>) {
         let (mu, log_sigma) = self.encode(x.clone(), graph);
         let log_sigma = log_sigma.clamp(-LOG_SIGMA_LIMIT, LOG_SIGMA_LIMIT);
         let sigma = log_sigma.clone().exp();
@@ -232,7 +245,7 @@ impl GraphVae {
         let entries = mu.dims().iter().product::<usize>();
         let reconstruction = (x_hat.clone() - x).powi_scalar(2).sum().mul_scalar(0.5);
         // KL(N(μ, σ²) ‖ N(0, 1)) = −log σ + (μ² + σ²)/2 − 1/2 per dimension.
-        let kl = (mu.powi_scalar(2) + sigma.powi_scalar(2)).mul_scalar(0.5) - log_sigma;
+        let kl = (mu.clone().powi_scalar(2) + sigma.powi_scalar(2)).mul_scalar(0.5) - log_sigma;
         let kl = kl.sum().sub_scalar(0.5 * entries as f64);
         let mut total = reconstruction + kl.mul_scalar(weights.kl);
         if d_x == 6 {
@@ -241,7 +254,7 @@ impl GraphVae {
             let term = length2.neg().add_scalar(1.0).sum();
             total = total + term.mul_scalar(weights.normals);
         }
-        total.div_scalar(graphs.max(1) as f64)
+        (total.div_scalar(graphs.max(1) as f64), mu)
     }
 }
 

@@ -189,6 +189,38 @@ impl TrainedGraphVae {
         (out, batch)
     }
 
+    /// Ψ on the training device, ready to train further (the refinement).
+    pub(crate) fn trainable(&self) -> Result<GraphVae, NnError> {
+        let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(self.to_bytes()?))
+            .map_err(|e| NnError::Weights(e.to_string()))?;
+        let skeleton = self.config.init(
+            PositionScaling::IDENTITY,
+            &mut rng(0, STREAM_INIT),
+            &training_device(),
+        );
+        skeleton
+            .try_load_record(record)
+            .map_err(|e| NnError::Weights(e.to_string()))
+    }
+
+    /// A trained Ψ from a network trained on the training device.
+    pub(crate) fn from_training(
+        config: &GraphVaeConfig,
+        model: &GraphVae,
+        losses: Vec<f64>,
+    ) -> Self {
+        Self {
+            config: config.clone(),
+            losses,
+            model: model.valid(),
+        }
+    }
+
+    /// The position scaling Ψ was trained with (mm to network units).
+    pub fn scaling(&self) -> PositionScaling {
+        self.model.scaling()
+    }
+
     /// The weights as a burn record (burnpack bytes), for storing as a blob.
     pub fn to_bytes(&self) -> Result<Vec<u8>, NnError> {
         let bytes = self

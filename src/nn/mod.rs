@@ -16,6 +16,7 @@ pub mod graph;
 pub mod graph_vae;
 mod graph_vae_train;
 mod init;
+pub mod refine;
 pub mod slots;
 pub mod train;
 
@@ -26,5 +27,6 @@ pub use feast::{FeaStConfig, FeaStConv};
 pub use graph::{Features, GraphBatch, GraphSample, PositionScaling};
 pub use graph_vae::GraphVaeConfig;
 pub use graph_vae_train::{GraphVaeTraining, TrainedGraphVae, train_graph_vae};
+pub use refine::{GraphRefiner, RefineEpoch, RefineObjective, RefineTerms, RefineTraining};
 pub use slots::{GraphTensors, SlotLayout};
 pub use train::{Flow, Monitor, Unmonitored};

@@ -52,8 +52,57 @@ pub fn cohort_page(c: &CohortPage<'_>) -> String {
     for (name, b) in &c.report.biomarkers {
         body.push_str(&figure(name, &biomarker_violin(c, name, b)));
     }
-    body.push_str("</div><h2>Clusters</h2><p class=\"note\">This model has a single population (no clusters), so there is no per-cluster breakdown.</p>");
+    body.push_str("</div>");
+    body.push_str(&cluster_table(c.report));
     page(&format!("Cohort {}", c.cohort_id), &body)
+}
+
+/// Per cluster (atlas): members, share, joint acceptance and each biomarker's mean ± sd.
+fn cluster_table(report: &CohortReport) -> String {
+    let mut t = String::from("<h2>Clusters</h2>");
+    if report.clusters.is_empty() {
+        t.push_str("<p class=\"note\">This cohort was stored before clusters were recorded.</p>");
+        return t;
+    }
+    if report.clusters.len() == 1 {
+        t.push_str(
+            "<p class=\"note\">The model has a single atlas: every member is in cluster 0.</p>",
+        );
+    }
+    let names: Vec<&String> = report.biomarkers.keys().collect();
+    t.push_str("<table><tr><th>cluster</th><th>members</th><th>share</th><th>A<sup>r</sup></th><th>A<sup>M</sup></th><th>A<sup>μ</sup></th>");
+    for name in &names {
+        let _ = write!(t, "<th>{} mean ± sd</th>", escape(name));
+    }
+    t.push_str("</tr>");
+    for c in &report.clusters {
+        let _ = write!(
+            t,
+            "<tr><td>{}</td><td>{}</td><td>{:.3}</td>",
+            c.cluster, c.count, c.share
+        );
+        match &c.acceptance {
+            Some(a) => {
+                let _ = write!(
+                    t,
+                    "<td>{:.3}</td><td>{:.3}</td><td>{:.3}</td>",
+                    a.range, a.mode, a.mean
+                );
+            }
+            None => t.push_str("<td>–</td><td>–</td><td>–</td>"),
+        }
+        for name in &names {
+            match c.biomarkers.get(*name) {
+                Some(s) => {
+                    let _ = write!(t, "<td>{}</td>", mean_sd(s.mean, s.sd));
+                }
+                None => t.push_str("<td>–</td>"),
+            }
+        }
+        t.push_str("</tr>");
+    }
+    t.push_str("</table>");
+    t
 }
 
 fn acceptance_table(report: &CohortReport) -> String {

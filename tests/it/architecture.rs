@@ -115,3 +115,24 @@ fn the_check_sees_an_offence() {
     assert!(uses("use sqlx::SqlitePool;", "sqlx::"));
     assert!(!uses("// sqlx::is mentioned in a comment", "sqlx::"));
 }
+
+/// Layers above `models` that must reach model types only through its registry.
+const ABOVE_MODELS: [&str; 5] = ["api", "jobs", "cli", "store", "report"];
+
+#[test]
+fn nothing_above_models_names_a_model_type() {
+    let mut offences = Vec::new();
+    for module in ABOVE_MODELS {
+        for (file, source) in module_sources(module) {
+            for path in ["models::rsmp", "models::asmg", "models::atlas_r_asmg"] {
+                if uses(&source, path) {
+                    offences.push(format!("{file} uses {path}"));
+                }
+            }
+        }
+    }
+    assert!(
+        offences.is_empty(),
+        "model types are reached through models::registry: {offences:#?}"
+    );
+}

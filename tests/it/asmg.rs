@@ -19,7 +19,7 @@ const PHANTOM_VERTICES: usize = 300;
 const ATLAS_VERTICES: usize = 200;
 
 /// Few epochs and cheap registration: the test checks the plumbing, not the quality.
-fn tiny_params() -> Value {
+pub(crate) fn tiny_params() -> Value {
     json!({
         "features": "hybrid",
         "atlas_vertices": ATLAS_VERTICES,
@@ -31,7 +31,7 @@ fn tiny_params() -> Value {
     })
 }
 
-async fn upload_small_phantoms(s: &TestServer, count: usize, seed: u64) -> String {
+pub(crate) async fn upload_small_phantoms(s: &TestServer, count: usize, seed: u64) -> String {
     let dataset = s.dataset("tiny phantoms", "lv").await;
     let mut form = Form::new();
     for p in phantom::generate(Family::Lv, count, seed) {
@@ -50,7 +50,21 @@ async fn upload_small_phantoms(s: &TestServer, count: usize, seed: u64) -> Strin
     dataset
 }
 
-async fn get(s: &TestServer, path: &str) -> Value {
+/// Submits a job; answers the 202 body.
+pub(crate) async fn submit(s: &TestServer, body: &Value) -> Value {
+    expect_json(
+        s.client
+            .post(s.url("/v1/jobs"))
+            .json(body)
+            .send()
+            .await
+            .unwrap(),
+        StatusCode::ACCEPTED,
+    )
+    .await
+}
+
+pub(crate) async fn get(s: &TestServer, path: &str) -> Value {
     expect_json(
         s.client.get(s.url(path)).send().await.unwrap(),
         StatusCode::OK,
@@ -58,7 +72,7 @@ async fn get(s: &TestServer, path: &str) -> Value {
     .await
 }
 
-async fn wait_for(s: &TestServer, job: &str, timeout: Duration) -> (Value, Vec<Value>) {
+pub(crate) async fn wait_for(s: &TestServer, job: &str, timeout: Duration) -> (Value, Vec<Value>) {
     let started = std::time::Instant::now();
     let mut seen = Vec::new();
     loop {
@@ -85,16 +99,7 @@ async fn tiny_phantoms_to_asmg_model_to_cohort() {
     let s = TestServer::start().await;
     let dataset = upload_small_phantoms(&s, 12, 5).await;
     let body = json!({"dataset_id": dataset, "model_type": "asmg", "params": tiny_params(), "seed": 2, "holdout_fraction": 0.2});
-    let job = expect_json(
-        s.client
-            .post(s.url("/v1/jobs"))
-            .json(&body)
-            .send()
-            .await
-            .unwrap(),
-        StatusCode::ACCEPTED,
-    )
-    .await;
+    let job = submit(&s, &body).await;
     let (done, seen) = wait_for(&s, job["id"].as_str().unwrap(), Duration::from_secs(300)).await;
     assert_eq!(done["status"], "succeeded", "{done}");
     let losses: Vec<f64> = seen

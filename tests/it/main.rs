@@ -2,6 +2,7 @@
 
 mod architecture;
 mod asmg;
+mod atlas_r_asmg;
 mod auth;
 mod bad_uploads;
 mod cli;

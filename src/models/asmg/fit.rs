@@ -1,7 +1,9 @@
 //! Fitting ASMG (thesis ch. 4; SPEC §2.4–2.6): simplify and pre-align the training meshes,
 //! train the graph VAE Ψ on them, learn the atlas and the correspondences (Algorithm 1),
-//! train the beta-VAE generator on the smoothed normalised shapes, and evaluate.
+//! train the beta-VAE generator on the smoothed normalised shapes. The steps are shared
+//! with `atlas-r-asmg`, which refines Ψ and the atlas between the atlas and the generator.
 
+use super::embeddings::Embeddings;
 use super::init::{AtlasInit, initial_atlas};
 use super::learn::{LearnedAtlas, ShapeInput, learn_atlas};
 use super::model::{
@@ -9,16 +11,11 @@ use super::model::{
 };
 use super::monitor::StageMonitor;
 use super::params::{AsmgParams, AtlasChoice};
-use crate::eval::privacy::DEFAULT_PERCENTILE;
 use crate::mesh::Mesh;
 use crate::models::alignment::median_resolution_index;
-use crate::models::evaluation::evaluate;
 use crate::models::progress::{Progress, Stages};
 use crate::models::workers::map_items;
-use crate::models::{
-    AnyModel, AtlasInfo, FitOutcome, LossCurve, ModelError, ModelSummary, ReferencePopulation,
-    StageTiming, StoredModel, TrainingShapes,
-};
+use crate::models::{FitInput, FittedParts, LossCurve, ModelError};
 use crate::nn::{
     BetaVaeConfig, BetaVaeTraining, GraphSample, GraphVaeConfig, GraphVaeTraining, TrainedGraphVae,
     train_beta_vae, train_graph_vae,
@@ -27,9 +24,9 @@ use crate::nn::{
 /// Fewest training meshes an ASMG fit accepts.
 pub const MIN_TRAINING_MESHES: usize = 3;
 /// Meshes embedded per forward pass of Ψ after training.
-const EMBED_CHUNK: usize = 8;
+pub(crate) const EMBED_CHUNK: usize = 8;
 /// Stages of a fit and their rough share of the time.
-const STAGES: [(&str, f64); 5] = [
+pub(crate) const STAGES: [(&str, f64); 5] = [
     ("alignment", 15.0),
     ("graph_vae", 45.0),
     ("atlas", 10.0),
@@ -38,16 +35,47 @@ const STAGES: [(&str, f64); 5] = [
 ];
 
 /// The training meshes simplified and registered to the reference.
-struct Aligned {
+pub(crate) struct Aligned {
     /// The reference (simplified, mm): the model frame.
-    reference: Mesh,
+    pub(crate) reference: Mesh,
     /// Each training mesh simplified and in the model frame.
-    meshes: Vec<Mesh>,
+    pub(crate) meshes: Vec<Mesh>,
     /// All original vertices of each training mesh in the model frame.
-    vertices: Vec<Vec<[f64; 3]>>,
+    pub(crate) vertices: Vec<Vec<[f64; 3]>>,
 }
 
-fn align_training(
+impl Aligned {
+    /// The graphs of the simplified meshes, with the fit's features.
+    pub(crate) fn samples(&self, params: &AsmgParams) -> Vec<GraphSample> {
+        self.meshes
+            .iter()
+            .map(|m| GraphSample::from_mesh(m, params.features.features()))
+            .collect()
+    }
+
+    /// Ψ's embeddings of every simplified mesh, `[N_k, d_z]` each.
+    pub(crate) fn embeddings(
+        &self,
+        graph: &TrainedGraphVae,
+        params: &AsmgParams,
+    ) -> Result<Vec<Embeddings>, ModelError> {
+        embeddings_of(graph, &self.samples(params), EMBED_CHUNK)
+    }
+
+    /// The shapes as the atlas loop sees them: embeddings beside positions.
+    pub(crate) fn inputs<'a>(&'a self, embeddings: &'a [Embeddings]) -> Vec<ShapeInput<'a>> {
+        embeddings
+            .iter()
+            .zip(&self.meshes)
+            .map(|(e, m)| ShapeInput {
+                embeddings: e,
+                positions: &m.vertices,
+            })
+            .collect()
+    }
+}
+
+pub(crate) fn align_training(
     training: &[Mesh],
     params: &AsmgParams,
     reference_index: usize,
@@ -81,7 +109,7 @@ fn graph_config(params: &AsmgParams) -> GraphVaeConfig {
     GraphVaeConfig::new().with_d_x(params.features.features().width())
 }
 
-fn train_graph(
+pub(crate) fn train_graph(
     samples: &[GraphSample],
     params: &AsmgParams,
     seed: u64,
@@ -104,7 +132,7 @@ fn train_graph(
 
 /// The initial atlas for the parameters (`given`: the user's atlas mesh among the aligned
 /// training meshes).
-fn starting_atlas(
+pub(crate) fn starting_atlas(
     params: &AsmgParams,
     aligned: &[Mesh],
     given: Option<usize>,
@@ -138,7 +166,7 @@ fn starting_atlas(
     initial_atlas(&choice, aligned)
 }
 
-fn learn(
+pub(crate) fn learn(
     graph: &TrainedGraphVae,
     aligned: &Aligned,
     initial: Mesh,
@@ -146,20 +174,8 @@ fn learn(
     stages: &Stages,
     progress: &mut dyn Progress,
 ) -> Result<LearnedAtlas, ModelError> {
-    let samples: Vec<GraphSample> = aligned
-        .meshes
-        .iter()
-        .map(|m| GraphSample::from_mesh(m, params.features.features()))
-        .collect();
-    let embeddings = embeddings_of(graph, &samples, EMBED_CHUNK)?;
-    let inputs: Vec<ShapeInput<'_>> = embeddings
-        .iter()
-        .zip(&aligned.meshes)
-        .map(|(e, m)| ShapeInput {
-            embeddings: e,
-            positions: &m.vertices,
-        })
-        .collect();
+    let embeddings = aligned.embeddings(graph, params)?;
+    let inputs = aligned.inputs(&embeddings);
     let total = params.max_em_steps as u64;
     learn_atlas(
         initial,
@@ -177,51 +193,67 @@ fn learn(
     )
 }
 
-/// Fits ASMG to `training` and evaluates it on `holdout`. `atlas_index` is the position in
-/// `training` of the mesh given as `atlas` (if one was).
-pub fn fit(
-    training: &[Mesh],
-    holdout: &[Mesh],
+/// Checks that a mesh named as atlas is among the training meshes.
+pub(crate) fn check_atlas_choice(
     params: &AsmgParams,
-    atlas_index: Option<usize>,
-    seed: u64,
-    progress: &mut dyn Progress,
-) -> Result<FitOutcome, ModelError> {
-    params.check()?;
-    if let (Some(id), None) = (params.atlas_mesh_id(), atlas_index) {
+    input: &FitInput<'_>,
+) -> Result<(), ModelError> {
+    if let (Some(id), None) = (params.atlas_mesh_id(), input.template_index) {
         return Err(ModelError::invalid(
             "atlas",
             format!("mesh {id} is not among the training meshes"),
         ));
     }
-    if training.len() < MIN_TRAINING_MESHES {
-        return Err(ModelError::TooFewMeshes {
-            required: MIN_TRAINING_MESHES,
-            found: training.len(),
-        });
-    }
-    let mut stages = Stages::new(&STAGES);
+    Ok(())
+}
+
+/// Pre-aligns the training meshes to the atlas mesh or the median-resolution one.
+pub(crate) fn align_input(
+    params: &AsmgParams,
+    input: &FitInput<'_>,
+    stages: &mut Stages,
+    progress: &mut dyn Progress,
+) -> Result<Aligned, ModelError> {
+    check_atlas_choice(params, input)?;
     stages.enter("alignment");
-    let reference_index = atlas_index.unwrap_or_else(|| median_resolution_index(training));
-    let aligned = align_training(training, params, reference_index, &stages, progress)?;
+    let reference_index = input
+        .template_index
+        .unwrap_or_else(|| median_resolution_index(input.training));
+    align_training(input.training, params, reference_index, stages, progress)
+}
 
-    stages.enter("graph_vae");
-    let samples: Vec<GraphSample> = aligned
-        .meshes
-        .iter()
-        .map(|m| GraphSample::from_mesh(m, params.features.features()))
-        .collect();
-    let (graph, graph_losses) = train_graph(&samples, params, seed, &stages, progress)?;
-    drop(samples);
+/// What the generator is trained on: Ψ, the learned atlas and the training shapes on it.
+pub(crate) struct Correspondences {
+    /// The trained (and possibly refined) Ψ.
+    pub(crate) graph: TrainedGraphVae,
+    /// The learned atlas (mm, model frame).
+    pub(crate) atlas: Mesh,
+    /// The training shapes' smoothed normalised shapes on it, `K` of `[N_μ, 3]` mm.
+    pub(crate) smoothed: Vec<Vec<[f64; 3]>>,
+    /// The pre-aligned training meshes.
+    pub(crate) aligned: Aligned,
+    /// Loss curves so far (Ψ, refinement).
+    pub(crate) losses: Vec<LossCurve>,
+}
 
-    stages.enter("atlas");
-    let initial = starting_atlas(params, &aligned.meshes, atlas_index)?;
-    let learned = learn(&graph, &aligned, initial, params, &stages, progress)?;
-
+/// Trains the generator on the smoothed normalised shapes and builds the model.
+pub(crate) fn train_generator_and_build(
+    learned: Correspondences,
+    params: &AsmgParams,
+    seed: u64,
+    stages: &mut Stages,
+    progress: &mut dyn Progress,
+) -> Result<FittedParts<AsmgModel>, ModelError> {
+    let Correspondences {
+        graph,
+        atlas,
+        smoothed,
+        aligned,
+        mut losses,
+    } = learned;
     stages.enter("generator");
-    let shapes: Vec<Vec<f32>> = learned.smoothed.iter().map(|h| flatten_f32(h)).collect();
-    let vae_config =
-        BetaVaeConfig::new(3 * learned.atlas.vertex_count()).with_latent(params.latent_dim);
+    let shapes: Vec<Vec<f32>> = smoothed.iter().map(|h| flatten_f32(h)).collect();
+    let vae_config = BetaVaeConfig::new(3 * atlas.vertex_count()).with_latent(params.latent_dim);
     let vae_training = BetaVaeTraining {
         epochs: params.epochs_vae,
         batch_size: params.batch_size_vae,
@@ -230,31 +262,22 @@ pub fn fit(
         seed,
         ..BetaVaeTraining::default()
     };
-    let mut monitor = StageMonitor::new(&stages, progress, "generator", params.epochs_vae);
+    let mut monitor = StageMonitor::new(stages, progress, "generator", params.epochs_vae);
     let generator =
         train_beta_vae(&shapes, &vae_config, &vae_training, &mut monitor).map_err(nn_error)?;
-    let losses = vec![
-        LossCurve {
-            network: "graph_vae".to_owned(),
-            per_epoch: graph_losses,
-        },
-        LossCurve {
-            network: "beta_vae".to_owned(),
-            per_epoch: monitor.losses,
-        },
-    ];
-    // The members are compared with these (same atlas vertices, model frame, mm).
-    let normalised = learned.smoothed.clone();
-
+    losses.push(LossCurve {
+        network: "beta_vae".to_owned(),
+        per_epoch: monitor.losses,
+    });
     let weights = (
         graph.to_bytes().map_err(nn_error)?,
         generator.to_bytes().map_err(nn_error)?,
     );
     let sizes = NetworkSizes::of(&graph.config, &generator.config);
     let latent_prior = generator.aggregate_prior(&shapes).map_err(nn_error)?;
-    let networks = AsmgModel::derive(graph, generator, &learned.atlas, params)?;
+    let networks = AsmgModel::derive(graph, generator, &atlas, params)?;
     let mut model = AsmgModel::new(
-        learned.atlas,
+        atlas,
         aligned.reference,
         params.clone(),
         sizes,
@@ -262,43 +285,46 @@ pub fn fit(
         Some(networks),
     );
     model.latent_prior = Some(latent_prior);
-
-    stages.enter("evaluation");
-    let training_faces: Vec<&[[u32; 3]]> = training.iter().map(|m| m.faces.as_slice()).collect();
-    let evaluation = evaluate(
-        &model,
-        &aligned.vertices,
-        &training_faces,
-        holdout,
-        training.len(),
-        seed,
-        &stages,
-        progress,
-    )?;
-    let reference = ReferencePopulation::from_meshes(training)?;
-    let training_shapes = TrainingShapes::new(&aligned.vertices, &normalised, DEFAULT_PERCENTILE)?;
-    stages.close();
-    let summary = ModelSummary {
-        atlas: AtlasInfo {
-            vertex_count: model.atlas.vertex_count(),
-            face_count: model.atlas.face_count(),
-        },
-        evaluation,
+    Ok(FittedParts {
+        model,
+        aligned_training: aligned.vertices,
+        // The members are compared with these (same atlas vertices, model frame, mm).
+        normalised: vec![smoothed],
         explained_variance: None,
         n_modes: None,
-        training_count: training.len(),
-        holdout_count: holdout.len(),
-        timings: StageTiming::all(&stages),
+        losses,
+    })
+}
+
+/// Fits ASMG up to its evaluation.
+pub(crate) fn fit(
+    params: &AsmgParams,
+    input: &FitInput<'_>,
+    stages: &mut Stages,
+    progress: &mut dyn Progress,
+) -> Result<FittedParts<AsmgModel>, ModelError> {
+    let aligned = align_input(params, input, stages, progress)?;
+
+    stages.enter("graph_vae");
+    let samples = aligned.samples(params);
+    let (graph, graph_losses) = train_graph(&samples, params, input.seed, stages, progress)?;
+    drop(samples);
+
+    stages.enter("atlas");
+    let initial = starting_atlas(params, &aligned.meshes, input.template_index)?;
+    let learned = learn(&graph, &aligned, initial, params, stages, progress)?;
+    let losses = vec![LossCurve {
+        network: "graph_vae".to_owned(),
+        per_epoch: graph_losses,
+    }];
+    let learned = Correspondences {
+        graph,
+        atlas: learned.atlas,
+        smoothed: learned.smoothed,
+        aligned,
         losses,
     };
-    Ok(FitOutcome {
-        model: StoredModel {
-            model: AnyModel::Asmg(model),
-            training: training_shapes,
-        },
-        summary,
-        reference,
-    })
+    train_generator_and_build(learned, params, input.seed, stages, progress)
 }
 
 #[cfg(test)]

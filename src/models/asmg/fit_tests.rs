@@ -4,9 +4,9 @@ use super::*;
 use crate::geometry::pca::Sampling;
 use crate::mesh::measures::volume_ml;
 use crate::mesh::phantom::{self, Family};
-use crate::models::ShapeModel;
 use crate::models::cohort::draw_rng;
 use crate::models::progress::{Cancelled, ProgressUpdate, Silent};
+use crate::models::{FitOutcome, ModelType, ShapeModel, StoredModel};
 
 /// Small and quick: meshes of about 300 vertices, an atlas of about 200, few epochs.
 fn quick() -> AsmgParams {
@@ -18,6 +18,26 @@ fn quick() -> AsmgParams {
         cpd_max_iterations: 40,
         ..AsmgParams::default()
     }
+}
+
+/// A whole fit through the registry, as jobs run it.
+fn fit(
+    training: &[Mesh],
+    holdout: &[Mesh],
+    params: &AsmgParams,
+    template_index: Option<usize>,
+    seed: u64,
+    progress: &mut dyn Progress,
+) -> Result<FitOutcome, ModelError> {
+    let params =
+        ModelType::parse_name("asmg")?.parse_params(&serde_json::to_value(params).unwrap())?;
+    let input = FitInput {
+        training,
+        holdout,
+        template_index,
+        seed,
+    };
+    params.fit(&input, progress)
 }
 
 fn phantoms(count: usize) -> Vec<Mesh> {
@@ -32,9 +52,7 @@ fn fit_samples_reconstructs_and_round_trips() {
     let meshes = phantoms(8);
     let (training, holdout) = meshes.split_at(6);
     let outcome = fit(training, holdout, &quick(), None, 4, &mut Silent).unwrap();
-    let AnyModel::Asmg(model) = &outcome.model.model else {
-        panic!("an asmg fit gives an asmg model")
-    };
+    let model: &AsmgModel = outcome.model.downcast().expect("an asmg model");
     let atlas = &model.atlas;
     assert!(
         (150..=260).contains(&atlas.vertex_count()),
@@ -65,19 +83,19 @@ fn fit_samples_reconstructs_and_round_trips() {
 
     let sample = model
         .sample(&mut draw_rng(5, 0), Sampling::Gaussian)
-        .unwrap();
+        .unwrap()
+        .mesh;
     assert_eq!(sample.faces, atlas.faces);
     let volume = volume_ml(&sample);
     assert!(volume > 10.0 && volume < 500.0, "{volume} ml");
 
     let bytes = outcome.model.to_bytes().unwrap();
     let back = StoredModel::from_bytes(&bytes).unwrap();
-    let AnyModel::Asmg(back_model) = &back.model else {
-        panic!("the stored model is asmg")
-    };
+    let back_model: &AsmgModel = back.downcast().expect("the stored model is asmg");
     let again = back_model
         .sample(&mut draw_rng(5, 0), Sampling::Gaussian)
-        .unwrap();
+        .unwrap()
+        .mesh;
     for (a, b) in sample.vertices.iter().zip(&again.vertices) {
         for d in 0..3 {
             assert!((a[d] - b[d]).abs() < 1e-4, "{a:?} vs {b:?}");

@@ -34,7 +34,6 @@ pub use attention::{
     inverse_temperature, normalised_shape, score_moments,
 };
 pub use embeddings::Embeddings;
-pub use fit::fit;
 pub use init::{AtlasInit, initial_atlas};
 pub use laplacian::LaplacianSolver;
 pub use learn::{
@@ -42,5 +41,42 @@ pub use learn::{
     normalise_shapes,
 };
 pub use model::AsmgModel;
-pub use params::{AsmgParams, FeatureKind, SmoothingTarget};
+pub use params::{AsmgParams, CheckedAsmgParams, FeatureKind, SmoothingTarget};
 pub use smoothing::{Smoother, Smoothing, SmoothingMethod, SmoothingParams, smooth};
+
+use crate::models::progress::{Progress, Stages};
+use crate::models::{FitInput, FittedParts, ModelError, ModelFamily};
+
+/// The `asmg` model type.
+pub struct Asmg;
+
+impl ModelFamily for Asmg {
+    const NAME: &'static str = "asmg";
+    const MIN_TRAINING_MESHES: usize = fit::MIN_TRAINING_MESHES;
+    const TEMPLATE_FIELD: &'static str = "atlas";
+    const STAGES: &'static [(&'static str, f64)] = &fit::STAGES;
+    type Params = AsmgParams;
+    type Checked = CheckedAsmgParams;
+    type Model = AsmgModel;
+
+    fn check(params: AsmgParams) -> Result<CheckedAsmgParams, ModelError> {
+        params.check()
+    }
+
+    fn params(checked: &CheckedAsmgParams) -> &AsmgParams {
+        checked.get()
+    }
+
+    fn template_mesh_id(checked: &CheckedAsmgParams) -> Option<&str> {
+        checked.get().atlas_mesh_id()
+    }
+
+    fn fit(
+        params: &CheckedAsmgParams,
+        input: &FitInput<'_>,
+        stages: &mut Stages,
+        progress: &mut dyn Progress,
+    ) -> Result<FittedParts<AsmgModel>, ModelError> {
+        fit::fit(params.get(), input, stages, progress)
+    }
+}

@@ -22,7 +22,8 @@ use crate::geometry::pca::Sampling;
 use crate::mesh::Mesh;
 use crate::mesh::simplify::simplify;
 use crate::models::alignment::{self, AlignmentParams};
-use crate::models::{ModelError, Reconstruction, ShapeModel};
+use crate::models::stored::{FittedModel, encode_named};
+use crate::models::{Draw, ModelError, Reconstruction, ShapeModel};
 use crate::nn::{
     BetaVaeConfig, GraphSample, GraphVaeConfig, LatentPrior, NnError, TrainedBetaVae,
     TrainedGraphVae,
@@ -107,8 +108,10 @@ pub struct AsmgModel {
     /// Sizes of Ψ and of the generator.
     pub sizes: NetworkSizes,
     /// Ψ's weights (burn record).
+    #[serde(with = "serde_bytes")]
     pub graph_weights: Vec<u8>,
     /// The generator's weights (burn record).
+    #[serde(with = "serde_bytes")]
     pub generator_weights: Vec<u8>,
     /// The Gaussian that new codes are drawn from, fitted to the training shapes' codes
     /// (absent in models stored before it existed: N(0, I)).
@@ -296,12 +299,22 @@ fn latent_coordinate(rng: &mut ChaCha8Rng, sampling: Sampling) -> f32 {
     v.clamp(-LATENT_CLIP, LATENT_CLIP) as f32
 }
 
-impl ShapeModel for AsmgModel {
-    fn atlas(&self) -> &Mesh {
-        &self.atlas
+impl FittedModel for AsmgModel {
+    fn encode(&self) -> Result<Vec<u8>, ModelError> {
+        encode_named(self)
     }
 
-    fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Mesh, ModelError> {
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+}
+
+impl ShapeModel for AsmgModel {
+    fn atlases(&self) -> &[Mesh] {
+        std::slice::from_ref(&self.atlas)
+    }
+
+    fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Draw, ModelError> {
         let standard: Vec<f32> = (0..self.sizes.vae_latent)
             .map(|_| latent_coordinate(rng, sampling))
             .collect();
@@ -309,9 +322,11 @@ impl ShapeModel for AsmgModel {
             Some(prior) if prior.centre.len() == standard.len() => prior.code(&standard),
             _ => standard,
         };
-        self.decode(&[z])?
+        let mesh = self
+            .decode(&[z])?
             .pop()
-            .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))
+            .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))?;
+        Ok(Draw { mesh, cluster: 0 })
     }
 
     fn reconstruct(&self, mesh: &Mesh) -> Result<Reconstruction, ModelError> {
@@ -333,6 +348,7 @@ impl ShapeModel for AsmgModel {
             .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))?;
         Ok(Reconstruction {
             mesh,
+            atlas: 0,
             normalised,
             aligned_input,
         })

@@ -179,6 +179,17 @@ impl Default for AsmgParams {
     }
 }
 
+/// ASMG parameters that passed [`AsmgParams::check`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckedAsmgParams(AsmgParams);
+
+impl CheckedAsmgParams {
+    /// The parameters.
+    pub fn get(&self) -> &AsmgParams {
+        &self.0
+    }
+}
+
 /// How the initial atlas is chosen, as parsed from `atlas`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum AtlasChoice<'a> {
@@ -224,8 +235,14 @@ fn within(field: &str, v: usize, lo: usize, hi: usize) -> Result<(), ModelError>
 }
 
 impl AsmgParams {
+    /// Checks every value (the error names the parameter): what a fit takes.
+    pub fn check(self) -> Result<CheckedAsmgParams, ModelError> {
+        self.validate()?;
+        Ok(CheckedAsmgParams(self))
+    }
+
     /// Checks every value; the error names the parameter.
-    pub fn check(&self) -> Result<(), ModelError> {
+    pub fn validate(&self) -> Result<(), ModelError> {
         if self.atlas.trim().is_empty() {
             return Err(ModelError::invalid(
                 "atlas",
@@ -330,7 +347,7 @@ mod tests {
     use super::*;
 
     fn field(p: AsmgParams) -> String {
-        match p.check() {
+        match p.validate() {
             Err(ModelError::InvalidParams { field, .. }) => field,
             other => panic!("expected invalid params, got {other:?}"),
         }
@@ -339,7 +356,7 @@ mod tests {
     #[test]
     fn defaults_are_valid_and_bad_values_name_their_field() {
         let d = AsmgParams::default();
-        assert!(d.check().is_ok());
+        assert!(d.clone().check().is_ok());
         assert_eq!(d.atlas_choice(), AtlasChoice::Auto);
         assert_eq!(
             d.temperature(),

@@ -182,6 +182,37 @@ impl Smoother {
     }
 }
 
+impl Smoother {
+    /// The gradient with respect to the unsmoothed shape `h` of a loss whose gradient with
+    /// respect to the smoothed shape `h'` is `gradient` (`[N_μ, 3]`). Smoothing is affine in
+    /// `h` with the symmetric linear part `A⁻¹`, `A = I + γL`, so this is `A⁻¹·gradient` for
+    /// either target. With Jacobi sweeps it applies the same sweeps to the gradient (their
+    /// linear part, as the sweeps approximate `A⁻¹`).
+    pub fn pull_back(&self, gradient: &[[f64; 3]]) -> Result<Vec<[f64; 3]>, ModelError> {
+        let n = self.adjacency.vertex_count();
+        if gradient.len() != n {
+            return Err(ModelError::InvalidInput(format!(
+                "a gradient of {} rows on an atlas of {n} vertices",
+                gradient.len()
+            )));
+        }
+        match &self.solve {
+            Solve::Exact(solver) => solver.solve(gradient),
+            Solve::Jacobi {
+                steps,
+                tolerance_mm,
+            } => Ok(jacobi_smooth(
+                &self.adjacency,
+                gradient,
+                self.params.gamma,
+                *steps,
+                *tolerance_mm,
+            )?
+            .0),
+        }
+    }
+}
+
 /// One-off smoothing of `h` on the atlas `atlas` (its connectivity and, for
 /// [`Smoothing::Displacement`], its positions). Prefer a [`Smoother`] for many shapes.
 pub fn smooth(

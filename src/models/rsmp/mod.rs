@@ -6,110 +6,20 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::alignment::{self, AlignmentParams, Normalisation};
-use super::evaluation::evaluate;
 use super::progress::{Progress, Stages};
+use super::stored::{FittedModel, encode_named};
 use super::workers::map_items;
-use super::{
-    AnyModel, AtlasInfo, FitOutcome, ModelError, ModelSummary, Reconstruction, ReferencePopulation,
-    ShapeModel, StageTiming, StoredModel, TrainingShapes,
-};
-use crate::eval::privacy::DEFAULT_PERCENTILE;
+use super::{Draw, FitInput, FittedParts, ModelError, ModelFamily, Reconstruction, ShapeModel};
 use crate::geometry::correspondence::{flatten, normalised_shape, unflatten};
-use crate::geometry::cpd::RigidCpdParams;
 use crate::geometry::pca::{PcaModel, PcaParams, Sampling};
 use crate::mesh::Mesh;
 
+mod params;
+
+pub use params::{CheckedRsmpParams, DEFAULT_VARIANCE_TARGET, RsmpParams};
+
 /// Fewest training meshes an RSMP fit accepts.
 pub const MIN_TRAINING_MESHES: usize = 3;
-/// Default share of variance the kept modes explain.
-pub const DEFAULT_VARIANCE_TARGET: f64 = 0.95;
-
-/// Parameters of an RSMP fit (`params` of a job with `model_type: "rsmp"`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct RsmpParams {
-    /// Mesh id of the template; default: the training mesh whose vertex count is closest
-    /// to the median.
-    pub template: Option<String>,
-    /// Modes to keep (with `variance_target`, the smaller count wins).
-    pub n_modes: Option<usize>,
-    /// Keep the fewest modes explaining this share of variance, in (0, 1].
-    pub variance_target: Option<f64>,
-    /// Estimate an isotropic scale in the registration (off keeps size as a shape mode).
-    pub scale: bool,
-    /// Search 24 initial rotations before registering (for meshes in arbitrary poses).
-    pub multistart: bool,
-    /// CPD outlier weight w, in [0, 1).
-    pub cpd_w: f64,
-    /// Most CPD iterations.
-    pub cpd_max_iterations: usize,
-    /// CPD stopping tolerance (relative change).
-    pub cpd_tolerance: f64,
-}
-
-impl Default for RsmpParams {
-    fn default() -> Self {
-        let cpd = RigidCpdParams::default();
-        Self {
-            template: None,
-            n_modes: None,
-            variance_target: Some(DEFAULT_VARIANCE_TARGET),
-            scale: false,
-            multistart: true,
-            cpd_w: cpd.w,
-            cpd_max_iterations: cpd.max_iterations,
-            cpd_tolerance: cpd.tolerance,
-        }
-    }
-}
-
-impl RsmpParams {
-    /// Checks every value; the error names the parameter.
-    pub fn check(&self) -> Result<(), ModelError> {
-        if self.n_modes == Some(0) {
-            return Err(ModelError::invalid("n_modes", "must be at least 1"));
-        }
-        if let Some(t) = self.variance_target
-            && !(t > 0.0 && t <= 1.0)
-        {
-            return Err(ModelError::invalid(
-                "variance_target",
-                format!("must be in (0, 1], got {t}"),
-            ));
-        }
-        if !(0.0..1.0).contains(&self.cpd_w) {
-            return Err(ModelError::invalid(
-                "cpd_w",
-                format!("must be in [0, 1), got {}", self.cpd_w),
-            ));
-        }
-        if !(1..=10_000).contains(&self.cpd_max_iterations) {
-            return Err(ModelError::invalid(
-                "cpd_max_iterations",
-                "must be between 1 and 10000",
-            ));
-        }
-        if !(self.cpd_tolerance.is_finite() && self.cpd_tolerance > 0.0 && self.cpd_tolerance < 1.0)
-        {
-            return Err(ModelError::invalid("cpd_tolerance", "must be in (0, 1)"));
-        }
-        Ok(())
-    }
-
-    fn alignment(&self) -> AlignmentParams {
-        AlignmentParams {
-            cpd: RigidCpdParams {
-                w: self.cpd_w,
-                max_iterations: self.cpd_max_iterations,
-                tolerance: self.cpd_tolerance,
-                scale: self.scale,
-                min_sigma2: 0.0,
-            },
-            multistart: self.multistart,
-            ..AlignmentParams::default()
-        }
-    }
-}
 
 /// A mesh's normalised shape `[n_template_vertices, 3]` and its vertices in the template
 /// frame `[n_vertices, 3]` (mm).
@@ -161,12 +71,15 @@ impl RsmpModel {
 }
 
 impl ShapeModel for RsmpModel {
-    fn atlas(&self) -> &Mesh {
-        &self.template
+    fn atlases(&self) -> &[Mesh] {
+        std::slice::from_ref(&self.template)
     }
 
-    fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Mesh, ModelError> {
-        Ok(self.to_mesh(&self.pca.sample(rng, sampling)))
+    fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Draw, ModelError> {
+        Ok(Draw {
+            mesh: self.to_mesh(&self.pca.sample(rng, sampling)),
+            cluster: 0,
+        })
     }
 
     fn reconstruct(&self, mesh: &Mesh) -> Result<Reconstruction, ModelError> {
@@ -175,33 +88,70 @@ impl ShapeModel for RsmpModel {
         let x = self.pca.reconstruct(&b)?;
         Ok(Reconstruction {
             mesh: self.to_mesh(&x),
+            atlas: 0,
             normalised,
             aligned_input,
         })
     }
 }
 
-/// Fits RSMP to `training` and evaluates it on `holdout`.
-///
-/// `template_index` picks the template among `training` (default: median resolution).
-pub fn fit(
-    training: &[Mesh],
-    holdout: &[Mesh],
-    params: &RsmpParams,
-    template_index: Option<usize>,
-    seed: u64,
-    progress: &mut dyn Progress,
-) -> Result<FitOutcome, ModelError> {
-    params.check()?;
-    if training.len() < MIN_TRAINING_MESHES {
-        return Err(ModelError::TooFewMeshes {
-            required: MIN_TRAINING_MESHES,
-            found: training.len(),
-        });
+impl FittedModel for RsmpModel {
+    fn encode(&self) -> Result<Vec<u8>, ModelError> {
+        encode_named(self)
     }
-    let mut stages = Stages::new(&[("alignment", 70.0), ("pca", 2.0), ("evaluation", 28.0)]);
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+}
+
+/// The `rsmp` model type.
+pub struct Rsmp;
+
+impl ModelFamily for Rsmp {
+    const NAME: &'static str = "rsmp";
+    const MIN_TRAINING_MESHES: usize = MIN_TRAINING_MESHES;
+    const TEMPLATE_FIELD: &'static str = "template";
+    const STAGES: &'static [(&'static str, f64)] =
+        &[("alignment", 70.0), ("pca", 2.0), ("evaluation", 28.0)];
+    type Params = RsmpParams;
+    type Checked = CheckedRsmpParams;
+    type Model = RsmpModel;
+
+    fn check(params: RsmpParams) -> Result<CheckedRsmpParams, ModelError> {
+        params.check()
+    }
+
+    fn params(checked: &CheckedRsmpParams) -> &RsmpParams {
+        checked.get()
+    }
+
+    fn template_mesh_id(checked: &CheckedRsmpParams) -> Option<&str> {
+        checked.get().template.as_deref()
+    }
+
+    fn fit(
+        params: &CheckedRsmpParams,
+        input: &FitInput<'_>,
+        stages: &mut Stages,
+        progress: &mut dyn Progress,
+    ) -> Result<FittedParts<RsmpModel>, ModelError> {
+        fit(params.get(), input, stages, progress)
+    }
+}
+
+/// Registers the training meshes to the template and fits the PCA.
+fn fit(
+    params: &RsmpParams,
+    input: &FitInput<'_>,
+    stages: &mut Stages,
+    progress: &mut dyn Progress,
+) -> Result<FittedParts<RsmpModel>, ModelError> {
+    let training = input.training;
     stages.enter("alignment");
-    let t = template_index.unwrap_or_else(|| alignment::median_resolution_index(training));
+    let t = input
+        .template_index
+        .unwrap_or_else(|| alignment::median_resolution_index(training));
     let template = training
         .get(t)
         .cloned()
@@ -245,42 +195,13 @@ pub fn fit(
         format!("kept {} modes", model.pca.n_modes()),
         None,
     )?;
-    stages.enter("evaluation");
-    let training_faces: Vec<&[[u32; 3]]> = training.iter().map(|m| m.faces.as_slice()).collect();
-    let evaluation = evaluate(
-        &model,
-        &aligned,
-        &training_faces,
-        holdout,
-        training.len(),
-        seed,
-        &stages,
-        progress,
-    )?;
-    let reference = ReferencePopulation::from_meshes(training)?;
-    let training_shapes = TrainingShapes::new(&aligned, &shapes, DEFAULT_PERCENTILE)?;
-    stages.close();
-    let summary = ModelSummary {
-        atlas: AtlasInfo {
-            vertex_count: model.template.vertex_count(),
-            face_count: model.template.face_count(),
-        },
-        evaluation,
+    Ok(FittedParts {
         explained_variance: Some(model.pca.cumulative_explained.clone()),
         n_modes: Some(model.pca.n_modes()),
-        training_count: training.len(),
-        holdout_count: holdout.len(),
-        timings: StageTiming::all(&stages),
-        losses: Vec::new(),
-    };
-    let model = StoredModel {
-        model: AnyModel::Rsmp(model),
-        training: training_shapes,
-    };
-    Ok(FitOutcome {
         model,
-        summary,
-        reference,
+        aligned_training: aligned,
+        normalised: vec![shapes],
+        losses: Vec::new(),
     })
 }
 
@@ -289,6 +210,7 @@ mod tests {
     use super::*;
     use crate::mesh::phantom::{self, Family};
     use crate::models::progress::Silent;
+    use crate::models::{ModelType, StoredModel};
 
     #[test]
     fn fit_samples_and_reconstructs_phantoms() {
@@ -298,22 +220,22 @@ mod tests {
             .collect();
         let (training, holdout) = meshes.split_at(6);
         let started = std::time::Instant::now();
-        let outcome = fit(
+        let input = FitInput {
             training,
             holdout,
-            &RsmpParams::default(),
-            None,
-            1,
-            &mut Silent,
-        )
-        .unwrap();
+            template_index: None,
+            seed: 1,
+        };
+        let params = ModelType::parse_name("rsmp")
+            .unwrap()
+            .parse_params(&serde_json::Value::Null)
+            .unwrap();
+        let outcome = params.fit(&input, &mut Silent).unwrap();
         eprintln!(
             "rsmp fit of 6+2 LV phantoms: {:.1} s",
             started.elapsed().as_secs_f64()
         );
-        let AnyModel::Rsmp(model) = &outcome.model.model else {
-            panic!("an rsmp fit gives an rsmp model")
-        };
+        let model: &RsmpModel = outcome.model.downcast().expect("an rsmp model");
         let summary = &outcome.summary;
         assert_eq!(summary.training_count, 6);
         assert!(summary.n_modes.unwrap() >= 1 && summary.n_modes.unwrap() <= 5);
@@ -329,6 +251,8 @@ mod tests {
                 Sampling::Gaussian,
             )
             .unwrap();
+        assert_eq!(sample.cluster, 0);
+        let sample = sample.mesh;
         assert_eq!(sample.faces, model.template.faces);
         let volume = crate::mesh::measures::volume_ml(&sample);
         let reference = &outcome.reference.stats[0];
@@ -338,11 +262,9 @@ mod tests {
         );
         let bytes = outcome.model.to_bytes().unwrap();
         let back = StoredModel::from_bytes(&bytes).unwrap();
-        let AnyModel::Rsmp(back_model) = &back.model else {
-            panic!("the stored model is rsmp")
-        };
+        let back_model: &RsmpModel = back.downcast().expect("the stored model is rsmp");
         assert_eq!(back_model.pca, model.pca);
         assert_eq!(back.training.shapes.len(), 6);
-        assert!(back.training.privacy.threshold_mm > 0.0);
+        assert!(back.training.privacy[0].threshold_mm > 0.0);
     }
 }

@@ -1,0 +1,106 @@
+//! What every fit shares: its input, the parts a model type hands back, and the closing
+//! steps written once (evaluation, reference population, training shapes, summary).
+
+use std::sync::Arc;
+
+use super::evaluation::evaluate;
+use super::progress::{Progress, Stages};
+use super::registry::ModelType;
+use super::stored::{FittedModel, StoredModel};
+use super::{
+    AtlasInfo, FitOutcome, LossCurve, ModelError, ModelSummary, ReferencePopulation, StageTiming,
+    TrainingShapes,
+};
+use crate::eval::privacy::DEFAULT_PERCENTILE;
+use crate::mesh::Mesh;
+
+/// The meshes and settings of one fit.
+#[derive(Debug, Clone, Copy)]
+pub struct FitInput<'a> {
+    /// Training meshes (mm), in fit order.
+    pub training: &'a [Mesh],
+    /// Held-out meshes for generalisation and matching.
+    pub holdout: &'a [Mesh],
+    /// Position in `training` of the mesh the user named as template or atlas.
+    pub template_index: Option<usize>,
+    /// Seed: the same inputs and seed give the same model.
+    pub seed: u64,
+}
+
+/// What a model type's fit hands to [`finish`].
+#[derive(Debug)]
+pub struct FittedParts<M> {
+    /// The fitted model.
+    pub model: M,
+    /// All vertices of each training mesh in the model frame, `[n_vertices, 3]` mm each.
+    pub aligned_training: Vec<Vec<[f64; 3]>>,
+    /// `normalised[m][k]`: training shape `k` normalised to atlas `m`, `[N_μm, 3]` mm.
+    pub normalised: Vec<Vec<Vec<[f64; 3]>>>,
+    /// Cumulative explained variance per mode (PCA models).
+    pub explained_variance: Option<Vec<f64>>,
+    /// Modes kept (PCA models).
+    pub n_modes: Option<usize>,
+    /// Loss per epoch of each trained network.
+    pub losses: Vec<LossCurve>,
+}
+
+/// Evaluates the fitted model on the held-out meshes and samples, and assembles the
+/// outcome: the stored model, its summary and the reference population.
+pub fn finish<M: FittedModel + 'static>(
+    model_type: ModelType,
+    parts: FittedParts<M>,
+    input: &FitInput<'_>,
+    mut stages: Stages,
+    progress: &mut dyn Progress,
+) -> Result<FitOutcome, ModelError> {
+    stages.enter("evaluation");
+    let training_faces: Vec<&[[u32; 3]]> =
+        input.training.iter().map(|m| m.faces.as_slice()).collect();
+    let evaluation = evaluate(
+        &parts.model,
+        &parts.aligned_training,
+        &training_faces,
+        input.holdout,
+        input.training.len(),
+        input.seed,
+        &stages,
+        progress,
+    )?;
+    let reference = ReferencePopulation::from_meshes(input.training)?;
+    let training = TrainingShapes::new(
+        &parts.aligned_training,
+        &parts.normalised,
+        DEFAULT_PERCENTILE,
+    )?;
+    stages.close();
+    let atlases: Vec<AtlasInfo> = parts
+        .model
+        .atlases()
+        .iter()
+        .enumerate()
+        .map(|(i, a)| AtlasInfo::of(i, a))
+        .collect();
+    let summary = ModelSummary {
+        atlas: atlases
+            .first()
+            .cloned()
+            .ok_or_else(|| ModelError::InvalidInput("the model has no atlas".to_owned()))?,
+        atlases,
+        evaluation,
+        explained_variance: parts.explained_variance,
+        n_modes: parts.n_modes,
+        training_count: input.training.len(),
+        holdout_count: input.holdout.len(),
+        timings: StageTiming::all(&stages),
+        losses: parts.losses,
+    };
+    Ok(FitOutcome {
+        model: StoredModel {
+            model_type,
+            model: Arc::new(parts.model),
+            training,
+        },
+        summary,
+        reference,
+    })
+}

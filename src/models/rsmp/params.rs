@@ -1,0 +1,108 @@
+//! Parameters of an RSMP fit (`params` of a job with `model_type: "rsmp"`).
+
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::cpd::RigidCpdParams;
+use crate::models::ModelError;
+use crate::models::alignment::AlignmentParams;
+
+/// Default share of variance the kept modes explain.
+pub const DEFAULT_VARIANCE_TARGET: f64 = 0.95;
+
+/// Parameters of an RSMP fit (`params` of a job with `model_type: "rsmp"`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RsmpParams {
+    /// Mesh id of the template; default: the training mesh whose vertex count is closest
+    /// to the median.
+    pub template: Option<String>,
+    /// Modes to keep (with `variance_target`, the smaller count wins).
+    pub n_modes: Option<usize>,
+    /// Keep the fewest modes explaining this share of variance, in (0, 1].
+    pub variance_target: Option<f64>,
+    /// Estimate an isotropic scale in the registration (off keeps size as a shape mode).
+    pub scale: bool,
+    /// Search 24 initial rotations before registering (for meshes in arbitrary poses).
+    pub multistart: bool,
+    /// CPD outlier weight w, in [0, 1).
+    pub cpd_w: f64,
+    /// Most CPD iterations.
+    pub cpd_max_iterations: usize,
+    /// CPD stopping tolerance (relative change).
+    pub cpd_tolerance: f64,
+}
+
+impl Default for RsmpParams {
+    fn default() -> Self {
+        let cpd = RigidCpdParams::default();
+        Self {
+            template: None,
+            n_modes: None,
+            variance_target: Some(DEFAULT_VARIANCE_TARGET),
+            scale: false,
+            multistart: true,
+            cpd_w: cpd.w,
+            cpd_max_iterations: cpd.max_iterations,
+            cpd_tolerance: cpd.tolerance,
+        }
+    }
+}
+
+impl RsmpParams {
+    /// Checks every value (the error names the parameter): what a fit takes.
+    pub fn check(self) -> Result<CheckedRsmpParams, ModelError> {
+        if self.n_modes == Some(0) {
+            return Err(ModelError::invalid("n_modes", "must be at least 1"));
+        }
+        if let Some(t) = self.variance_target
+            && !(t > 0.0 && t <= 1.0)
+        {
+            return Err(ModelError::invalid(
+                "variance_target",
+                format!("must be in (0, 1], got {t}"),
+            ));
+        }
+        if !(0.0..1.0).contains(&self.cpd_w) {
+            return Err(ModelError::invalid(
+                "cpd_w",
+                format!("must be in [0, 1), got {}", self.cpd_w),
+            ));
+        }
+        if !(1..=10_000).contains(&self.cpd_max_iterations) {
+            return Err(ModelError::invalid(
+                "cpd_max_iterations",
+                "must be between 1 and 10000",
+            ));
+        }
+        if !(self.cpd_tolerance.is_finite() && self.cpd_tolerance > 0.0 && self.cpd_tolerance < 1.0)
+        {
+            return Err(ModelError::invalid("cpd_tolerance", "must be in (0, 1)"));
+        }
+        Ok(CheckedRsmpParams(self))
+    }
+
+    pub(super) fn alignment(&self) -> AlignmentParams {
+        AlignmentParams {
+            cpd: RigidCpdParams {
+                w: self.cpd_w,
+                max_iterations: self.cpd_max_iterations,
+                tolerance: self.cpd_tolerance,
+                scale: self.scale,
+                min_sigma2: 0.0,
+            },
+            multistart: self.multistart,
+            ..AlignmentParams::default()
+        }
+    }
+}
+
+/// RSMP parameters that passed [`RsmpParams::check`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckedRsmpParams(RsmpParams);
+
+impl CheckedRsmpParams {
+    /// The parameters.
+    pub fn get(&self) -> &RsmpParams {
+        &self.0
+    }
+}
