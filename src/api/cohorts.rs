@@ -155,6 +155,7 @@ fn check_request(body: &CreateCohort) -> Result<(), ApiError> {
     responses(
         (status = 201, description = "The cohort", body = CohortView, headers(("Location" = String, description = "URL of the cohort"))),
         (status = 404, description = "No such model", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The model was stored in a format this release does not read (model.unsupported_version)", body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "Invalid field, or too few accepted draws", body = Problem, content_type = "application/problem+json"),
     )
 )]

@@ -74,10 +74,10 @@ async fn tiny_phantoms_to_refined_model_atlases_and_clustered_cohort() {
     assert!(problem["detail"].as_str().unwrap().contains("1 atlas"));
 
     // A cohort: every member in cluster 0, one cluster row holding them all.
-    let url = s.url(&format!("/v1/models/{model_id}/cohorts"));
+    let url_of_cohorts = s.url(&format!("/v1/models/{model_id}/cohorts"));
     let cohort = expect_json(
         s.client
-            .post(&url)
+            .post(&url_of_cohorts)
             .json(&json!({"size": 5, "seed": 1}))
             .send()
             .await
@@ -108,4 +108,31 @@ async fn tiny_phantoms_to_refined_model_atlases_and_clustered_cohort() {
         .await
         .unwrap();
     assert!(page.contains("<h2>Clusters</h2>") && page.contains("every member is in cluster 0"));
+
+    // A model stored in a format this release does not read (here: unversioned, as before
+    // format 2) is a clear 409, not a 500; its record still reads.
+    let url = format!("sqlite://{}", s.database_path().display());
+    let pool = sqlx::SqlitePool::connect(&url).await.unwrap();
+    sqlx::query("UPDATE models SET payload = ? WHERE id = ?")
+        .bind(vec![0u8, 1, 2, 3])
+        .bind(model_id)
+        .execute(&pool)
+        .await
+        .unwrap();
+    pool.close().await;
+    let old = download(format!("/v1/models/{model_id}/atlases/0")).await;
+    let problem = expect_problem(old, StatusCode::CONFLICT, "model.unsupported_version").await;
+    assert!(
+        problem["detail"].as_str().unwrap().contains("format 2"),
+        "{problem}"
+    );
+    let response = s
+        .client
+        .post(&url_of_cohorts)
+        .json(&json!({"size": 2}))
+        .send()
+        .await
+        .unwrap();
+    expect_problem(response, StatusCode::CONFLICT, "model.unsupported_version").await;
+    get(&s, &format!("/v1/models/{model_id}")).await;
 }

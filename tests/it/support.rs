@@ -53,6 +53,11 @@ impl TestServer {
         }
     }
 
+    /// The server's SQLite file (for tests that tamper with what is stored).
+    pub fn database_path(&self) -> PathBuf {
+        self._dir.path().join("test.db")
+    }
+
     /// Absolute URL of a path.
     pub fn url(&self, path: &str) -> String {
         format!("{}{}", self.base, path)

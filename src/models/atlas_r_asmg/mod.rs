@@ -21,8 +21,9 @@
 //! - **λ is held constant within a step**: computed per shape from the detached scores
 //!   (`variance_multiplier` / their variance, or the fixed `temperature`), as ASMG does.
 //! - **One atlas update per epoch**, damped as in ASMG.
-//! - **Units**: the terms use positions in Ψ's units (mm over the training vertices' RMS
-//!   radius), so `w_cd = w_lap = 1` weigh them against `L_Ψ` independently of organ size.
+//! - **Units**: the terms are in mm², as the thesis writes them; with `w_cd = w_lap = 1`
+//!   they outweigh `L_Ψ` about a hundredfold (see [`objective`] for the measurement that
+//!   chose this over terms scaled to Ψ's units).
 //! - ASMG's fixes are kept: displacement smoothing, the sharper attention, the generator on
 //!   standardised shapes and the latent prior of its codes.
 //!

@@ -25,9 +25,9 @@ pub const REFINEMENT_FIELDS: [&str; 3] = ["w_cd", "w_lap", "epochs_refine"];
 #[serde(deny_unknown_fields, default)]
 pub struct RefinementParams {
     /// Weight of the Chamfer term `CD(g_k, h'_k)` (sum of squared nearest-neighbour
-    /// distances both ways, on positions in Ψ's units).
+    /// distances both ways, mm²).
     pub w_cd: f64,
-    /// Weight of the Laplacian term `Σ_j‖h'_kj − mean_{q∈N(j)} h'_kq‖²` (Ψ's units).
+    /// Weight of the Laplacian term `Σ_j‖h'_kj − mean_{q∈N(j)} h'_kq‖²` (mm²).
     pub w_lap: f64,
     /// Epochs of end-to-end refinement of Ψ, each followed by an atlas update.
     pub epochs_refine: usize,

@@ -126,7 +126,6 @@ pub(crate) fn refine(
         seed,
     };
     let mut refiner = GraphRefiner::new(&graph, training).map_err(nn_error)?;
-    let scale_mm = f64::from(graph.scaling().scale);
     // One damped atlas step per epoch (eq. 5.12).
     let mut one_step = asmg.clone();
     one_step.max_em_steps = 1;
@@ -142,7 +141,6 @@ pub(crate) fn refine(
             temperature: asmg.temperature(),
             w_cd: r.w_cd,
             w_lap: r.w_lap,
-            scale_mm,
         };
         let mut check = BatchCheck {
             stages,

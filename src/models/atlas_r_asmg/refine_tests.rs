@@ -55,7 +55,6 @@ fn one_refinement_step_lowers_the_refinement_loss() {
         temperature: params.asmg.temperature(),
         w_cd: 1.0,
         w_lap: 1.0,
-        scale_mm: f64::from(graph.scaling().scale),
     };
     // One batch of all four shapes: each epoch's terms are measured before its one step.
     let refine_training = RefineTraining {
