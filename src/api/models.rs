@@ -49,6 +49,10 @@ pub struct ModelView {
     pub atlas: serde_json::Value,
     /// Every atlas (one for single-atlas models), each with its own connectivity.
     pub atlases: Vec<AtlasView>,
+    /// The clusters: each atlas with its prior, and every training and held-out mesh with
+    /// its soft weights over the atlases and its winning cluster (single-atlas models: one
+    /// atlas of prior 1, every mesh in cluster 0).
+    pub clusters: ClustersView,
     /// Quality in mm: `generalisation`, `specificity`, `matching`, each `{hd, ed, ed_star, cd}`
     /// of `{mean, std}`; generalisation and matching on the held-out meshes.
     #[schema(value_type = Object)]
@@ -88,6 +92,75 @@ pub struct AtlasView {
     pub href: String,
 }
 
+/// An atlas as a cluster.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct ClusterAtlasView {
+    /// Atlas index.
+    pub index: usize,
+    /// Vertices.
+    pub vertex_count: usize,
+    /// V − E + F.
+    pub euler_characteristic: Option<i64>,
+    /// Probability that a draw comes from this cluster.
+    pub prior: f64,
+}
+
+/// One mesh's membership.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct AssignmentView {
+    /// The training or held-out mesh.
+    pub mesh_id: String,
+    /// Soft weight of each atlas (sum 1).
+    pub weights: Vec<f64>,
+    /// The atlas of largest weight.
+    pub cluster: usize,
+}
+
+/// The model's clusters.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct ClustersView {
+    /// Each atlas with its prior.
+    pub atlases: Vec<ClusterAtlasView>,
+    /// Every training and held-out mesh.
+    pub assignments: Vec<AssignmentView>,
+}
+
+/// The clusters recorded in the summary, or, for models with one atlas (which record
+/// none), that atlas with prior 1 and every mesh in it.
+fn clusters_of(
+    summary: &serde_json::Value,
+    atlases: &[AtlasView],
+    provenance: &Provenance,
+) -> ClustersView {
+    if let Some(recorded) = summary
+        .get("clusters")
+        .and_then(|c| serde_json::from_value::<ClustersView>(c.clone()).ok())
+    {
+        return recorded;
+    }
+    ClustersView {
+        atlases: atlases
+            .iter()
+            .map(|a| ClusterAtlasView {
+                index: a.index,
+                vertex_count: a.vertex_count,
+                euler_characteristic: a.euler_characteristic,
+                prior: 1.0 / atlases.len().max(1) as f64,
+            })
+            .collect(),
+        assignments: provenance
+            .training_mesh_ids
+            .iter()
+            .chain(&provenance.holdout_mesh_ids)
+            .map(|id| AssignmentView {
+                mesh_id: id.clone(),
+                weights: vec![1.0],
+                cluster: 0,
+            })
+            .collect(),
+    }
+}
+
 /// The atlases recorded in a model's summary (models stored before several atlases existed
 /// record only `atlas`).
 fn atlases_of(id: &str, summary: &serde_json::Value) -> Vec<AtlasView> {
@@ -125,8 +198,10 @@ impl From<ModelRecord> for ModelView {
                 .cloned()
                 .unwrap_or(serde_json::Value::Null)
         };
+        let atlases = atlases_of(&r.id, &r.summary);
         Self {
-            atlases: atlases_of(&r.id, &r.summary),
+            clusters: clusters_of(&r.summary, &atlases, &r.provenance),
+            atlases,
             atlas: field("atlas"),
             evaluation: field("evaluation"),
             explained_variance: field("explained_variance"),

@@ -31,7 +31,7 @@ pub const FIDELITY_SEED_OFFSET: u64 = 0xf1de_117e;
 /// Arguments of `cohortforge bench`.
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// Phantom family: `lv` or `liver`.
+    /// Phantom family: `lv`, `liver` or `mixed`.
     #[arg(long)]
     pub family: phantom::Family,
     /// Training phantoms.

@@ -53,7 +53,8 @@ pub enum Command {
 /// Arguments of `cohortforge phantoms`.
 #[derive(clap::Args, Debug)]
 pub struct PhantomArgs {
-    /// Shape family: `lv` (left-ventricle myocardium) or `liver`.
+    /// Shape family: `lv` (left-ventricle myocardium), `liver`, or `mixed` (genus-0
+    /// ellipsoids and genus-1 tori, labelled `subpopulation` in params.csv).
     #[arg(long)]
     pub family: phantom::Family,
     /// Number of subjects.

@@ -3,6 +3,7 @@
 
 pub mod acceptance;
 pub mod biomarkers;
+pub mod clustering;
 mod error;
 pub mod fidelity;
 pub mod kde;

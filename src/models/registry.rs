@@ -6,7 +6,6 @@
 //!
 //! Adding a model type: a folder with its `ModelFamily` and one line in [`REGISTRY`].
 
-use std::any::Any;
 use std::fmt;
 use std::marker::PhantomData;
 use std::sync::Arc;
@@ -193,7 +192,6 @@ trait AnyParams: fmt::Debug + Send + Sync {
         input: &FitInput<'_>,
         progress: &mut dyn Progress,
     ) -> Result<FitOutcome, ModelError>;
-    fn as_any(&self) -> &dyn Any;
 }
 
 struct Checked<F: ModelFamily> {
@@ -230,10 +228,6 @@ impl<F: ModelFamily> AnyParams for Checked<F> {
         let mut stages = Stages::new(F::STAGES);
         let parts = F::fit(&self.params, input, &mut stages, progress)?;
         finish(self.model_type, parts, input, stages, progress)
-    }
-
-    fn as_any(&self) -> &dyn Any {
-        &self.params
     }
 }
 
@@ -274,11 +268,6 @@ impl ModelParams {
     /// The mesh id the user chose as template or atlas, if any.
     pub fn template_mesh_id(&self) -> Option<&str> {
         self.checked.template_mesh_id()
-    }
-
-    /// The checked parameters of one type, when they are of that type (tests and tools).
-    pub fn downcast<T: 'static>(&self) -> Option<&T> {
-        self.checked.as_any().downcast_ref::<T>()
     }
 
     /// Fits the model these parameters describe to `input.training` and evaluates it on

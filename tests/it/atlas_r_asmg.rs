@@ -40,6 +40,16 @@ async fn tiny_phantoms_to_refined_model_atlases_and_clustered_cohort() {
         .filter_map(|t| t["stage"].as_str())
         .collect();
     assert!(timings.contains(&"refinement"), "{timings:?}");
+    let clusters = &model["clusters"];
+    assert_eq!(clusters["atlases"].as_array().unwrap().len(), 1);
+    assert_eq!(clusters["atlases"][0]["prior"], 1.0);
+    let assignments = clusters["assignments"].as_array().unwrap();
+    assert_eq!(assignments.len(), 10, "every training and held-out mesh");
+    assert!(
+        assignments
+            .iter()
+            .all(|a| a["cluster"] == 0 && a["weights"] == json!([1.0]))
+    );
     // The refinement's loss terms per epoch, each a plot of the report page.
     let page = format!("/v1/models/{model_id}/report.html");
     for term in ["refinement", "refinement_chamfer", "refinement_laplacian"] {

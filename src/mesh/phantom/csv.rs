@@ -1,6 +1,6 @@
 //! The phantoms' ground truth as CSV: one row per phantom.
 
-use super::{LOBE_NAMES, Phantom, ShapeParams};
+use super::{LOBE_NAMES, MixedParams, Phantom, ShapeParams};
 use crate::mesh::measures::volume_ml;
 
 /// Columns before the shape parameters.
@@ -66,6 +66,10 @@ fn row(p: &Phantom) -> Vec<(String, String)> {
         ("name".to_string(), p.name.clone()),
         ("family".to_string(), p.family().to_string()),
     ];
+    if let ShapeParams::Mixed(m) = &p.params.shape {
+        let label = m.sub_population().as_str();
+        cells.push(("subpopulation".to_string(), label.to_string()));
+    }
     let mut num = |name: String, value: f64| cells.push((name, value.to_string()));
     match &p.params.shape {
         ShapeParams::Lv(lv) => {
@@ -96,6 +100,30 @@ fn row(p: &Phantom) -> Vec<(String, String)> {
             }
             num("sphere_points".into(), liver.sphere_points as f64);
             num("jitter".into(), liver.jitter);
+        }
+        ShapeParams::Mixed(MixedParams::Bean {
+            radius_mm,
+            points,
+            jitter,
+        }) => {
+            for (axis, r) in ["x", "y", "z"].iter().zip(radius_mm) {
+                num(format!("radius_{axis}_mm"), *r);
+            }
+            num("sphere_points".into(), *points as f64);
+            num("jitter".into(), *jitter);
+        }
+        ShapeParams::Mixed(MixedParams::Ring {
+            major_radius_mm,
+            tube_radius_mm,
+            tube_half_height_mm,
+            n_around,
+            n_tube,
+        }) => {
+            num("major_radius_mm".into(), *major_radius_mm);
+            num("tube_radius_mm".into(), *tube_radius_mm);
+            num("tube_half_height_mm".into(), *tube_half_height_mm);
+            num("n_around".into(), *n_around as f64);
+            num("n_tube".into(), *n_tube as f64);
         }
     }
     let q = p.params.pose.quaternion();

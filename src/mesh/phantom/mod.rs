@@ -1,10 +1,12 @@
 //! Synthetic shape phantoms with exact ground truth.
 //!
-//! Two families of closed, outward-oriented, genus-0 triangle meshes in mm:
+//! Families of closed, outward-oriented triangle meshes in mm:
 //!
 //! - [`Family::Lv`]: a thick-walled truncated ellipsoidal cup, like the myocardium of a left
-//!   ventricle ([`LvParams`]);
-//! - [`Family::Liver`]: a lobed star-shaped surface, like a liver ([`LiverParams`]).
+//!   ventricle ([`LvParams`]), genus 0;
+//! - [`Family::Liver`]: a lobed star-shaped surface, like a liver ([`LiverParams`]), genus 0;
+//! - [`Family::Mixed`]: two labelled sub-populations of different topology, genus-0
+//!   ellipsoids (`bean`) and genus-1 tori (`ring`), for cluster recovery ([`MixedParams`]).
 //!
 //! Every subject has its own resolution and connectivity (vertex counts and triangulations
 //! differ between subjects, as they do between segmented organs), the exact volume of its
@@ -15,6 +17,7 @@ mod csv;
 mod hull;
 mod liver;
 mod lv;
+mod mixed;
 mod pose;
 mod quadrature;
 mod rings;
@@ -33,6 +36,7 @@ use super::Mesh;
 pub use csv::params_csv;
 pub use liver::{LOBE_COUNT, LOBE_NAMES, LiverParams, LiverRanges, Lobe};
 pub use lv::{LvParams, LvRanges, ellipsoid_segment_volume_mm3};
+pub use mixed::{MixedParams, RING_SHARE, SubPopulation};
 pub use pose::RigidPose;
 
 /// Largest translation of the random pose along each axis, in mm.
@@ -45,17 +49,20 @@ pub enum Family {
     Lv,
     /// Liver: a lobed star-shaped closed surface.
     Liver,
+    /// Two labelled sub-populations: ellipsoids (genus 0) and tori (genus 1).
+    Mixed,
 }
 
 impl Family {
     /// Every family.
-    pub const ALL: [Family; 2] = [Family::Lv, Family::Liver];
+    pub const ALL: [Family; 3] = [Family::Lv, Family::Liver, Family::Mixed];
 
     /// The family's name as used in phantom names and on the command line.
     pub fn as_str(self) -> &'static str {
         match self {
             Family::Lv => "lv",
             Family::Liver => "liver",
+            Family::Mixed => "mixed",
         }
     }
 
@@ -64,6 +71,7 @@ impl Family {
         match self {
             Family::Lv => 1 << 48,
             Family::Liver => 2 << 48,
+            Family::Mixed => 3 << 48,
         }
     }
 }
@@ -77,8 +85,8 @@ impl fmt::Display for Family {
 /// Errors of the phantom module.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum PhantomError {
-    /// The family name is not one of `lv`, `liver`.
-    #[error("unknown phantom family {0:?}: expected \"lv\" or \"liver\"")]
+    /// The family name is not one of `lv`, `liver`, `mixed`.
+    #[error("unknown phantom family {0:?}: expected \"lv\", \"liver\" or \"mixed\"")]
     UnknownFamily(String),
 }
 
@@ -89,6 +97,7 @@ impl FromStr for Family {
         match s.trim().to_ascii_lowercase().as_str() {
             "lv" => Ok(Family::Lv),
             "liver" => Ok(Family::Liver),
+            "mixed" => Ok(Family::Mixed),
             _ => Err(PhantomError::UnknownFamily(s.to_string())),
         }
     }
@@ -101,6 +110,8 @@ pub enum ShapeParams {
     Lv(LvParams),
     /// Parameters of a liver.
     Liver(LiverParams),
+    /// Parameters of a mixed-population subject (with its sub-population).
+    Mixed(MixedParams),
 }
 
 /// Everything needed to rebuild a phantom's ground truth.
@@ -131,6 +142,7 @@ impl Phantom {
         match self.params.shape {
             ShapeParams::Lv(_) => Family::Lv,
             ShapeParams::Liver(_) => Family::Liver,
+            ShapeParams::Mixed(_) => Family::Mixed,
         }
     }
 
@@ -169,6 +181,12 @@ pub fn subject(family: Family, seed: u64, index: usize) -> Phantom {
             let mesh = p.mesh(&mut rng);
             let volume_ml = p.volume_ml();
             (ShapeParams::Liver(p), volume_ml, mesh)
+        }
+        Family::Mixed => {
+            let p = MixedParams::sample(&mut rng);
+            let mesh = p.mesh(&mut rng);
+            let volume_ml = p.volume_ml();
+            (ShapeParams::Mixed(p), volume_ml, mesh)
         }
     };
     let pose = RigidPose::random(&mut rng, MAX_POSE_TRANSLATION_MM);

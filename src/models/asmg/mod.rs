@@ -9,6 +9,8 @@
 //! - [`atlas`]: the atlas update from the smoothed shapes, damped;
 //! - [`init`], [`icosphere`]: the initial atlas;
 //! - [`learn`]: Algorithm 1, the loop over all of the above until the atlas settles;
+//! - [`soft_clusters`]: soft memberships of shapes in several atlases and the weighted
+//!   atlas update (the multi-atlas building blocks);
 //! - [`params`]: the job parameters of `model_type: "asmg"`;
 //! - [`fit`]: the whole fit (pre-alignment, Ψ, atlas, generator, evaluation);
 //! - [`model`]: the fitted model (sampling, reconstruction, stored weights).
@@ -27,6 +29,7 @@ mod parallel;
 pub mod params;
 mod scores;
 pub mod smoothing;
+pub mod soft_clusters;
 
 pub use atlas::{AtlasUpdateParams, AtlasUpdater, update_atlas};
 pub use attention::{
