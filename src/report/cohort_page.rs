@@ -7,6 +7,8 @@ use std::fmt::Write;
 use super::cohort_plots::biomarker_violin;
 use super::plot::figure;
 use super::{escape, mean_sd, page};
+use crate::eval::acceptance::Rates;
+use crate::models::clusters::ClusterReport;
 use crate::models::cohort::CohortReport;
 use crate::models::reference::ReferencePopulation;
 
@@ -69,37 +71,43 @@ fn cluster_table(report: &CohortReport) -> String {
             "<p class=\"note\">The model has a single atlas: every member is in cluster 0.</p>",
         );
     }
-    let names: Vec<&String> = report.biomarkers.keys().collect();
-    t.push_str("<table><tr><th>cluster</th><th>members</th><th>share</th><th>A<sup>r</sup></th><th>A<sup>M</sup></th><th>A<sup>μ</sup></th>");
-    for name in &names {
-        let _ = write!(t, "<th>{} mean ± sd</th>", escape(name));
+    // One column per cluster, so the table stays narrow for any number of biomarkers.
+    t.push_str("<table><tr><th></th>");
+    for c in &report.clusters {
+        let _ = write!(t, "<th>cluster {}</th>", c.cluster);
     }
     t.push_str("</tr>");
-    for c in &report.clusters {
-        let _ = write!(
-            t,
-            "<tr><td>{}</td><td>{}</td><td>{:.3}</td>",
-            c.cluster, c.count, c.share
-        );
-        match &c.acceptance {
-            Some(a) => {
-                let _ = write!(
-                    t,
-                    "<td>{:.3}</td><td>{:.3}</td><td>{:.3}</td>",
-                    a.range, a.mode, a.mean
-                );
-            }
-            None => t.push_str("<td>–</td><td>–</td><td>–</td>"),
-        }
-        for name in &names {
-            match c.biomarkers.get(*name) {
-                Some(s) => {
-                    let _ = write!(t, "<td>{}</td>", mean_sd(s.mean, s.sd));
-                }
-                None => t.push_str("<td>–</td>"),
-            }
+    let row = |t: &mut String, label: &str, cell: &dyn Fn(&ClusterReport) -> String| {
+        let _ = write!(t, "<tr><th>{label}</th>");
+        for c in &report.clusters {
+            let _ = write!(t, "<td>{}</td>", cell(c));
         }
         t.push_str("</tr>");
+    };
+    row(&mut t, "members", &|c| c.count.to_string());
+    row(&mut t, "share", &|c| format!("{:.3}", c.share));
+    let rate = |f: fn(&Rates) -> f64| {
+        move |c: &ClusterReport| {
+            c.acceptance
+                .as_ref()
+                .map_or("–".to_owned(), |a| format!("{:.3}", f(a)))
+        }
+    };
+    row(&mut t, "joint A<sup>r</sup>", &rate(|a| a.range));
+    row(&mut t, "joint A<sup>M</sup>", &rate(|a| a.mode));
+    row(&mut t, "joint A<sup>μ</sup>", &rate(|a| a.mean));
+    for (name, b) in &report.biomarkers {
+        let unit = if b.unit.is_empty() {
+            String::new()
+        } else {
+            format!(", {}", escape(&b.unit))
+        };
+        let label = format!("{}{unit}: mean ± sd", escape(name));
+        row(&mut t, &label, &|c| {
+            c.biomarkers
+                .get(name)
+                .map_or("–".to_owned(), |s| mean_sd(s.mean, s.sd))
+        });
     }
     t.push_str("</table>");
     t
