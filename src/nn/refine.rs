@@ -26,6 +26,8 @@ use super::graph_vae_train::TrainedGraphVae;
 use super::init::standard_normal;
 use super::train::{Monitor, adam, check_schedule, epoch_batches, go_on};
 
+/// Mixed into the seed so the refinement's batch order and noise differ from Ψ's training.
+const REFINE_SEED_SALT: u64 = 0x5eed_4ef1;
 /// Squared norms below this count as zero when embeddings are made unit length.
 const NORM_FLOOR: f64 = 1e-12;
 
@@ -104,8 +106,8 @@ impl GraphRefiner {
             optimizer: adam(),
             scaling: trained.scaling(),
             trained: trained.clone(),
-            shuffle: rng(training.seed ^ 0x5eed_4ef1, STREAM_SHUFFLE),
-            noise: rng(training.seed ^ 0x5eed_4ef1, STREAM_NOISE),
+            shuffle: rng(training.seed ^ REFINE_SEED_SALT, STREAM_SHUFFLE),
+            noise: rng(training.seed ^ REFINE_SEED_SALT, STREAM_NOISE),
             training,
             device: training_device(),
             losses: Vec::new(),

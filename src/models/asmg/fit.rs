@@ -175,7 +175,28 @@ pub(crate) fn learn(
     progress: &mut dyn Progress,
 ) -> Result<LearnedAtlas, ModelError> {
     let embeddings = aligned.embeddings(graph, params)?;
-    let inputs = aligned.inputs(&embeddings);
+    learn_from(
+        graph,
+        aligned,
+        &embeddings,
+        initial,
+        params,
+        stages,
+        progress,
+    )
+}
+
+/// [`learn`] with the training meshes' embeddings by `graph` already computed.
+pub(crate) fn learn_from(
+    graph: &TrainedGraphVae,
+    aligned: &Aligned,
+    embeddings: &[Embeddings],
+    initial: Mesh,
+    params: &AsmgParams,
+    stages: &Stages,
+    progress: &mut dyn Progress,
+) -> Result<LearnedAtlas, ModelError> {
+    let inputs = aligned.inputs(embeddings);
     let total = params.max_em_steps as u64;
     learn_atlas(
         initial,

@@ -5,7 +5,8 @@
 use super::objective::{Refinement, Target};
 use super::params::AtlasRAsmgParams;
 use crate::mesh::Mesh;
-use crate::models::asmg::fit::{Aligned, learn};
+use crate::models::asmg::Embeddings;
+use crate::models::asmg::fit::{Aligned, learn_from};
 use crate::models::asmg::model::{embed_mesh, nn_error};
 use crate::models::asmg::{Smoother, normalise_shapes};
 use crate::models::progress::{Progress, Silent, Stages};
@@ -65,16 +66,17 @@ impl Monitor for BatchCheck<'_> {
     }
 }
 
-/// The smoothed normalised shapes of every training mesh on `atlas` with Ψ = `graph`.
+/// The smoothed normalised shapes of every training mesh (embedded by `graph` as
+/// `embeddings`) on `atlas`.
 fn normalise_on(
     graph: &TrainedGraphVae,
     aligned: &Aligned,
+    embeddings: &[Embeddings],
     atlas: &Mesh,
     params: &AtlasRAsmgParams,
     smoother: &Smoother,
 ) -> Result<Vec<Vec<[f64; 3]>>, ModelError> {
-    let embeddings = aligned.embeddings(graph, &params.asmg)?;
-    let inputs = aligned.inputs(&embeddings);
+    let inputs = aligned.inputs(embeddings);
     let atlas_embeddings = embed_mesh(graph, atlas, &params.asmg)?;
     let normalised = normalise_shapes(
         atlas,
@@ -131,6 +133,7 @@ pub(crate) fn refine(
     one_step.max_em_steps = 1;
     let epochs = r.epochs_refine as u64;
     let mut done = Vec::with_capacity(r.epochs_refine);
+    let mut embeddings: Vec<Embeddings> = Vec::new();
     for epoch in 0..epochs {
         let atlas_sample = GraphSample::from_mesh(&atlas, asmg.features.features());
         let mut objective = Refinement {
@@ -153,10 +156,21 @@ pub(crate) fn refine(
             .epoch(&samples, &atlas_sample, &mut objective, &mut check)
             .map_err(nn_error)?
         else {
+            // Ψ moved since the last embeddings were taken.
+            embeddings.clear();
             break;
         };
         let current = refiner.trained();
-        let learned = learn(&current, aligned, atlas, &one_step, stages, &mut Silent)?;
+        embeddings = aligned.embeddings(&current, asmg)?;
+        let learned = learn_from(
+            &current,
+            aligned,
+            &embeddings,
+            atlas,
+            &one_step,
+            stages,
+            &mut Silent,
+        )?;
         let moved = learned.steps.last().map_or(0.0, |s| s.movement_mm);
         atlas = learned.atlas;
         done.push(losses);
@@ -168,7 +182,11 @@ pub(crate) fn refine(
         stages.report(progress, epoch + 1, epochs, message, Some(losses.total()))?;
     }
     let graph = refiner.trained();
-    let smoothed = normalise_on(&graph, aligned, &atlas, params, &smoother)?;
+    // The last finished epoch's embeddings are the refined Ψ's.
+    if embeddings.is_empty() {
+        embeddings = aligned.embeddings(&graph, asmg)?;
+    }
+    let smoothed = normalise_on(&graph, aligned, &embeddings, &atlas, params, &smoother)?;
     Ok(Refined {
         graph,
         atlas,
