@@ -42,7 +42,7 @@ fn main() {
     let input = FitInput {
         training: &meshes,
         holdout: &[],
-        template_index: None,
+        template_indices: &[],
         seed,
     };
     let outcome = params.fit(&input, &mut Silent).expect("fit");

@@ -38,7 +38,7 @@ pub(super) fn router() -> OpenApiRouter<AppState> {
 pub struct SubmitJob {
     /// Dataset to fit.
     pub dataset_id: String,
-    /// Model type: `rsmp`, `asmg` or `atlas-r-asmg`.
+    /// Model type: `rsmp`, `asmg`, `atlas-r-asmg` or `matlas-r-asmg`.
     #[schema(example = "rsmp")]
     pub model_type: String,
     /// Model parameters; omitted ones take their defaults (see the model's documentation).
@@ -134,17 +134,15 @@ async fn check_dataset(
             other => other.into(),
         })?;
     let ids: Vec<String> = meshes.into_iter().map(|(id, _)| id).collect();
-    let template = params.template_mesh_id();
-    if let Some(t) = template
-        && !ids.iter().any(|id| id == t)
-    {
+    let templates = params.template_mesh_ids();
+    if let Some(t) = templates.iter().find(|t| !ids.iter().any(|id| id == *t)) {
         let field = format!("params.{}", params.template_field());
         return Err(ApiError::invalid_field(
             &field,
             format!("{field}: mesh {t} is not in dataset {}", body.dataset_id),
         ));
     }
-    let (training, _) = holdout_split(&ids, holdout, body.seed, template);
+    let (training, _) = holdout_split(&ids, holdout, body.seed, &templates);
     let required = params.model_type().min_training_meshes();
     if training.len() < required {
         return Err(model_error(ModelError::TooFewMeshes {

@@ -14,7 +14,8 @@ use super::error::{ApiError, Problem};
 use super::extract::{Json, PageQuery, Paginated, Path, Query};
 use super::meshes::{MeshFile, mesh_file_response, parse_format};
 use crate::mesh::{self, Format};
-use crate::models::StoredModel;
+use crate::models::clusters::winning_cluster;
+use crate::models::{ClusterSummary, StoredModel};
 use crate::store::models::{ModelRecord, Provenance};
 
 pub(super) fn router() -> OpenApiRouter<AppState> {
@@ -132,12 +133,22 @@ fn clusters_of(
     atlases: &[AtlasView],
     provenance: &Provenance,
 ) -> ClustersView {
-    if let Some(recorded) = summary
+    let recorded = summary
         .get("clusters")
-        .and_then(|c| serde_json::from_value::<ClustersView>(c.clone()).ok())
-    {
-        return recorded;
-    }
+        .and_then(|c| serde_json::from_value::<ClusterSummary>(c.clone()).ok())
+        .unwrap_or_else(|| {
+            let all_in_first = |n: usize| vec![vec![1.0]; n];
+            ClusterSummary {
+                priors: vec![1.0],
+                training: all_in_first(provenance.training_mesh_ids.len()),
+                holdout: all_in_first(provenance.holdout_mesh_ids.len()),
+            }
+        });
+    let ids = provenance
+        .training_mesh_ids
+        .iter()
+        .zip(&recorded.training)
+        .chain(provenance.holdout_mesh_ids.iter().zip(&recorded.holdout));
     ClustersView {
         atlases: atlases
             .iter()
@@ -145,17 +156,14 @@ fn clusters_of(
                 index: a.index,
                 vertex_count: a.vertex_count,
                 euler_characteristic: a.euler_characteristic,
-                prior: 1.0 / atlases.len().max(1) as f64,
+                prior: recorded.priors.get(a.index).copied().unwrap_or(0.0),
             })
             .collect(),
-        assignments: provenance
-            .training_mesh_ids
-            .iter()
-            .chain(&provenance.holdout_mesh_ids)
-            .map(|id| AssignmentView {
+        assignments: ids
+            .map(|(id, weights)| AssignmentView {
                 mesh_id: id.clone(),
-                weights: vec![1.0],
-                cluster: 0,
+                weights: weights.clone(),
+                cluster: winning_cluster(weights),
             })
             .collect(),
     }

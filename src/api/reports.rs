@@ -127,6 +127,8 @@ pub(super) struct ModelData {
     id: String,
     model_type: String,
     summary: ModelSummary,
+    /// Training then held-out mesh ids, in fit order.
+    mesh_ids: (Vec<String>, Vec<String>),
 }
 
 impl ModelData {
@@ -137,6 +139,10 @@ impl ModelData {
             summary: stored("summary", model.summary)?,
             id: model.id,
             model_type: model.model_type,
+            mesh_ids: (
+                model.provenance.training_mesh_ids,
+                model.provenance.holdout_mesh_ids,
+            ),
         })
     }
 
@@ -146,6 +152,8 @@ impl ModelData {
             model_id: &self.id,
             model_type: &self.model_type,
             summary: &self.summary,
+            training_mesh_ids: &self.mesh_ids.0,
+            holdout_mesh_ids: &self.mesh_ids.1,
         }
     }
 }

@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use super::bench_clusters::ClusterBench;
 use super::bench_models::{BenchModel, ModelEntry, bench_models, parse_model_entry};
 use super::bench_report::{
     BenchReport, CohortBench, FitBench, ModelBench, ReferenceFidelity, SpecificityBench,
@@ -71,6 +72,8 @@ struct BenchData {
     test: Vec<Mesh>,
     /// Exact volumes of fresh phantoms, ml.
     fresh_volumes: Vec<f64>,
+    /// Sub-population of each training phantom (labelled families).
+    labels: Option<Vec<String>>,
 }
 
 fn check(args: &BenchArgs) -> CliResult {
@@ -100,7 +103,15 @@ pub fn run(args: &BenchArgs) -> CliResult {
     let test_phantoms = phantoms.split_off(args.train.min(phantoms.len()));
     let fidelity_seed = args.seed.wrapping_add(FIDELITY_SEED_OFFSET);
     let fresh = phantom::generate(args.family, args.fidelity_phantoms, fidelity_seed);
+    let labels: Option<Vec<String>> = phantoms
+        .iter()
+        .map(|p| match &p.params.shape {
+            phantom::ShapeParams::Mixed(m) => Some(m.sub_population().as_str().to_owned()),
+            _ => None,
+        })
+        .collect();
     let data = BenchData {
+        labels,
         training: phantoms.iter().map(|p| p.mesh.clone()).collect(),
         test: test_phantoms.into_iter().map(|p| p.mesh).collect(),
         fresh_volumes: fresh.iter().map(|p| p.params.volume_ml).collect(),
@@ -169,7 +180,7 @@ fn bench_model(
             params,
             &data.training,
             &data.test,
-            None,
+            &[],
             args.seed,
             &mut progress,
         )
@@ -204,6 +215,15 @@ fn bench_model(
     let (members, report) = cohort.map_err(|e| e.to_string())?;
     let seconds = started.elapsed().as_secs_f64();
     let volumes: Vec<f64> = members.iter().map(|m| m.biomarkers.volume_ml).collect();
+    let clusters = outcome.summary.clusters.as_ref().map(|c| {
+        let biomarkers: Vec<_> = members.iter().map(|m| m.biomarkers).collect();
+        ClusterBench::new(
+            c,
+            data.labels.as_deref(),
+            &outcome.reference.values,
+            &biomarkers,
+        )
+    });
     drop(members);
     let text = |e: crate::eval::EvalError| e.to_string();
     let fidelity = VolumeFidelity {
@@ -229,6 +249,7 @@ fn bench_model(
         cohort,
         fidelity,
         specificity,
+        clusters,
     })
 }
 

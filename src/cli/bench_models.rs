@@ -136,8 +136,9 @@ pub fn bench_models(entries: &[ModelEntry], params: &[String]) -> Result<Vec<Ben
                 .as_ref()
                 .and_then(|l| json_for(&Key::Label(l.clone())))
                 .or_else(|| json_for(&Key::Type(e.model_type)));
-            let params =
-                parse_params(e.model_type, json).map_err(|m| format!("{}: {m}", e.name()))?;
+            let json = with_label_params(e, json);
+            let params = parse_params(e.model_type, json.as_deref())
+                .map_err(|m| format!("{}: {m}", e.name()))?;
             Ok(BenchModel {
                 name: e.name().to_owned(),
                 model_type: e.model_type,
@@ -145,6 +146,29 @@ pub fn bench_models(entries: &[ModelEntry], params: &[String]) -> Result<Vec<Ben
             })
         })
         .collect()
+}
+
+/// The parameters a label implies for its type (e.g. `matlas-r-asmg:m5`: five atlases),
+/// with those given for the entry on top.
+fn with_label_params(entry: &ModelEntry, given: Option<&str>) -> Option<String> {
+    let implied = entry
+        .label
+        .as_deref()
+        .and_then(|l| entry.model_type.label_params(l));
+    let Some(mut implied) = implied else {
+        return given.map(str::to_owned);
+    };
+    if let Some(text) = given {
+        match (
+            implied.as_object_mut(),
+            serde_json::from_str::<serde_json::Value>(text),
+        ) {
+            (Some(base), Ok(serde_json::Value::Object(own))) => base.extend(own),
+            // Not an object: let the parameter check say what is wrong with it.
+            _ => return Some(text.to_owned()),
+        }
+    }
+    Some(implied.to_string())
 }
 
 impl std::fmt::Display for Key {

@@ -1,5 +1,6 @@
 //! What `cohortforge bench` measures, as JSON and as markdown tables.
 
+use super::bench_clusters::{ClusterBench, cluster_markdown};
 use serde::Serialize;
 
 use super::memory::StepMemory;
@@ -77,6 +78,9 @@ pub struct ModelBench {
     pub fidelity: VolumeFidelity,
     /// Timed specificity of many samples.
     pub specificity: SpecificityBench,
+    /// Clusters of multi-atlas models.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub clusters: Option<ClusterBench>,
 }
 
 /// Time and memory of a fit.
@@ -359,6 +363,14 @@ pub fn print_markdown(report: &BenchReport) {
             m.cohort.size,
             acceptance_table(&m.cohort.report)
         );
+    }
+    let clustered: Vec<String> = report
+        .models
+        .iter()
+        .filter_map(|m| m.clusters.as_ref().map(|c| cluster_markdown(&m.model, c)))
+        .collect();
+    if !clustered.is_empty() {
+        println!("### Clusters\n\n{}", clustered.concat());
     }
     println!(
         "### Volume fidelity against the generator ({} fresh phantoms, seed {})\n\n{}",

@@ -2,6 +2,7 @@
 //! (phantoms, fitting and evaluating models on directories of meshes, benchmarks).
 
 pub mod bench;
+mod bench_clusters;
 pub mod bench_models;
 pub mod bench_report;
 pub mod memory;

@@ -221,7 +221,7 @@ mod tests {
             .map(|p| p.canonical_mesh())
             .collect();
         let params = quick_params();
-        let outcome = fit_model(&params, &meshes[..4], &meshes[4..], None, 9, &mut Silent).unwrap();
+        let outcome = fit_model(&params, &meshes[..4], &meshes[4..], &[], 9, &mut Silent).unwrap();
         let names: Vec<String> = (0..5).map(|i| format!("lv_{i:03}.obj")).collect();
         let inputs = FitInputs {
             training_names: &names[..4],

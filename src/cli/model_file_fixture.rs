@@ -31,7 +31,7 @@ fn write_fixture() {
         .unwrap()
         .parse_params(&json)
         .unwrap();
-    let outcome = fit_model(&params, &meshes[..4], &meshes[4..], None, 5, &mut Silent).unwrap();
+    let outcome = fit_model(&params, &meshes[..4], &meshes[4..], &[], 5, &mut Silent).unwrap();
     let names: Vec<String> = (0..5).map(|i| format!("lv_{i:03}.obj")).collect();
     let inputs = FitInputs {
         training_names: &names[..4],

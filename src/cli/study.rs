@@ -113,17 +113,21 @@ pub fn fit(args: &FitArgs) -> CliResult {
     }
     let meshes = read_mesh_dir(&args.train)?;
     let names: Vec<String> = meshes.iter().map(|m| m.name.clone()).collect();
-    let template = params
-        .template_mesh_id()
+    let templates = params
+        .template_mesh_ids()
+        .into_iter()
         .map(|t| resolve_template(t, &names))
-        .transpose()?;
+        .collect::<Result<Vec<_>, _>>()?;
     let (training_names, holdout_names) =
-        holdout_split(&names, args.holdout_fraction, args.seed, template);
+        holdout_split(&names, args.holdout_fraction, args.seed, &templates);
     let (training, holdout) = (
         pick(&meshes, &training_names),
         pick(&meshes, &holdout_names),
     );
-    let template_index = template.and_then(|t| training_names.iter().position(|n| n == t));
+    let template_indices: Vec<usize> = templates
+        .iter()
+        .filter_map(|t| training_names.iter().position(|n| n == t))
+        .collect();
     eprintln!(
         "fitting {} on {} meshes ({} held out)",
         args.model.as_str(),
@@ -136,7 +140,7 @@ pub fn fit(args: &FitArgs) -> CliResult {
         &params,
         &training,
         &holdout,
-        template_index,
+        &template_indices,
         args.seed,
         &mut progress,
     )
@@ -152,6 +156,9 @@ pub fn fit(args: &FitArgs) -> CliResult {
         "{}",
         evaluation_markdown(&[(args.model.as_str().to_owned(), &outcome.summary.evaluation)])
     );
+    if let Some(c) = &outcome.summary.clusters {
+        println!("{}", clusters_markdown(c, &training_names, &holdout_names));
+    }
     println!(
         "fitted {} in {:.1} s ({} modes); wrote {}",
         args.model.as_str(),
@@ -163,6 +170,30 @@ pub fn fit(args: &FitArgs) -> CliResult {
         args.out.display()
     );
     Ok(())
+}
+
+/// The clusters of a multi-atlas fit: the priors, then each mesh's weights and cluster.
+fn clusters_markdown(
+    c: &crate::models::ClusterSummary,
+    training: &[String],
+    holdout: &[String],
+) -> String {
+    let priors: Vec<String> = c.priors.iter().map(|p| format!("{p:.3}")).collect();
+    let mut out = format!(
+        "Clusters (priors {}):\n\n| mesh | set | cluster | weights |\n|---|---|---|---|\n",
+        priors.join(" / ")
+    );
+    let rows = (training.iter().zip(&c.training).map(|r| (r, "training")))
+        .chain(holdout.iter().zip(&c.holdout).map(|r| (r, "held out")));
+    for ((name, weights), set) in rows {
+        let w: Vec<String> = weights.iter().map(|w| format!("{w:.3}")).collect();
+        out.push_str(&format!(
+            "| {name} | {set} | {} | {} |\n",
+            crate::models::clusters::winning_cluster(weights),
+            w.join(" / ")
+        ));
+    }
+    out
 }
 
 /// Matching, generalisation and specificity tables of one or more models, each with

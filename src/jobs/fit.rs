@@ -7,20 +7,20 @@ use crate::models::{FitInput, FitOutcome, ModelError, ModelParams};
 
 /// Fits the model that `params` describe to `training` and evaluates it on `holdout`.
 ///
-/// `template_index` picks the template (or atlas) among `training`; `None` lets the model
-/// choose. The same inputs and `seed` give the same model.
+/// `template_indices` pick the template or the atlases among `training` (positions);
+/// empty lets the model choose. The same inputs and `seed` give the same model.
 pub fn fit_model(
     params: &ModelParams,
     training: &[Mesh],
     holdout: &[Mesh],
-    template_index: Option<usize>,
+    template_indices: &[usize],
     seed: u64,
     progress: &mut dyn Progress,
 ) -> Result<FitOutcome, ModelError> {
     let input = FitInput {
         training,
         holdout,
-        template_index,
+        template_indices,
         seed,
     };
     params.fit(&input, progress)

@@ -29,18 +29,19 @@ struct Split {
     training: Vec<Mesh>,
     holdout: Vec<Mesh>,
     provenance: Provenance,
-    template_index: Option<usize>,
+    template_indices: Vec<usize>,
 }
 
 fn load_split(
     handle: &Handle,
     store: &Store,
     job: &Job,
-    template: Option<&str>,
+    templates: &[&str],
 ) -> Result<Split, RunError> {
     let meshes = handle.block_on(store.dataset_mesh_hashes(&job.dataset_id))?;
     let ids: Vec<String> = meshes.iter().map(|(id, _)| id.clone()).collect();
-    let (training_ids, holdout_ids) = holdout_split(&ids, job.holdout_fraction, job.seed, template);
+    let (training_ids, holdout_ids) =
+        holdout_split(&ids, job.holdout_fraction, job.seed, templates);
     let sha = |wanted: &[String]| -> Vec<String> {
         wanted
             .iter()
@@ -58,15 +59,17 @@ fn load_split(
             .map(|id| handle.block_on(store.mesh_geometry(id)))
             .collect()
     };
-    let template_index = match template {
-        Some(t) => Some(training_ids.iter().position(|id| id == t).ok_or_else(|| {
-            RunError::Invalid(format!(
-                "template mesh {t} is no longer in dataset {}",
-                job.dataset_id
-            ))
-        })?),
-        None => None,
-    };
+    let template_indices = templates
+        .iter()
+        .map(|t| {
+            training_ids.iter().position(|id| id == t).ok_or_else(|| {
+                RunError::Invalid(format!(
+                    "template mesh {t} is no longer in dataset {}",
+                    job.dataset_id
+                ))
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     Ok(Split {
         training: load(&training_ids)?,
         holdout: load(&holdout_ids)?,
@@ -76,7 +79,7 @@ fn load_split(
             training_mesh_ids: training_ids,
             holdout_mesh_ids: holdout_ids,
         },
-        template_index,
+        template_indices,
     })
 }
 
@@ -90,12 +93,12 @@ pub fn run_job(
     let model_type = ModelType::from_name(&job.model_type)
         .ok_or_else(|| RunError::Invalid(format!("unknown model type {}", job.model_type)))?;
     let params = model_type.parse_params(&job.params)?;
-    let split = load_split(handle, store, job, params.template_mesh_id())?;
+    let split = load_split(handle, store, job, &params.template_mesh_ids())?;
     let outcome: FitOutcome = fit_model(
         &params,
         &split.training,
         &split.holdout,
-        split.template_index,
+        &split.template_indices,
         job.seed,
         progress,
     )?;

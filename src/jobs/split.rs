@@ -4,16 +4,16 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 
-/// Holds out `round(fraction · n)` of `ids` chosen by `seed` (never `keep`, e.g. the
-/// template). Both parts keep the order of `ids`.
+/// Holds out `round(fraction · n)` of `ids` chosen by `seed` (never one of `keep`, e.g. the
+/// template or the atlases). Both parts keep the order of `ids`.
 pub fn holdout_split(
     ids: &[String],
     fraction: f64,
     seed: u64,
-    keep: Option<&str>,
+    keep: &[&str],
 ) -> (Vec<String>, Vec<String>) {
     let candidates: Vec<usize> = (0..ids.len())
-        .filter(|&i| Some(ids[i].as_str()) != keep)
+        .filter(|&i| !keep.contains(&ids[i].as_str()))
         .collect();
     let wanted = ((fraction * ids.len() as f64).round() as usize).min(candidates.len());
     let mut shuffled = candidates;
@@ -40,7 +40,7 @@ mod tests {
 
     #[test]
     fn split_sizes_order_and_seed() {
-        let (train, hold) = holdout_split(&ids(20), 0.25, 7, None);
+        let (train, hold) = holdout_split(&ids(20), 0.25, 7, &[]);
         assert_eq!((train.len(), hold.len()), (15, 5));
         let mut all: Vec<String> = train.iter().chain(&hold).cloned().collect();
         all.sort();
@@ -53,18 +53,18 @@ mod tests {
                 .all(|w| w[0][1..].parse::<u32>().unwrap() < w[1][1..].parse::<u32>().unwrap())
         );
         assert_eq!(
-            holdout_split(&ids(20), 0.25, 7, None),
+            holdout_split(&ids(20), 0.25, 7, &[]),
             (train.clone(), hold.clone())
         );
-        assert_ne!(holdout_split(&ids(20), 0.25, 8, None).1, hold);
+        assert_ne!(holdout_split(&ids(20), 0.25, 8, &[]).1, hold);
     }
 
     #[test]
     fn kept_mesh_stays_in_training() {
         for seed in 0..20 {
-            let (train, _) = holdout_split(&ids(4), 0.75, seed, Some("m2"));
+            let (train, _) = holdout_split(&ids(4), 0.75, seed, &["m2"]);
             assert!(train.contains(&"m2".to_owned()));
         }
-        assert_eq!(holdout_split(&ids(5), 0.0, 1, None).1.len(), 0);
+        assert_eq!(holdout_split(&ids(5), 0.0, 1, &[]).1.len(), 0);
     }
 }

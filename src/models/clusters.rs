@@ -60,3 +60,14 @@ pub fn cluster_reports(
         })
         .collect()
 }
+
+/// The index of the largest weight (the winning cluster); 0 for an empty row.
+pub fn winning_cluster(weights: &[f64]) -> usize {
+    weights
+        .iter()
+        .enumerate()
+        .fold((0, f64::NEG_INFINITY), |best, (m, &w)| {
+            if w > best.1 { (m, w) } else { best }
+        })
+        .0
+}

@@ -8,8 +8,8 @@ use super::progress::{Progress, Stages};
 use super::registry::ModelType;
 use super::stored::{FittedModel, StoredModel};
 use super::{
-    AtlasInfo, FitOutcome, LossCurve, ModelError, ModelSummary, ReferencePopulation, StageTiming,
-    TrainingShapes,
+    AtlasInfo, ClusterSummary, FitOutcome, LossCurve, ModelError, ModelSummary,
+    ReferencePopulation, StageTiming, TrainingShapes,
 };
 use crate::eval::privacy::DEFAULT_PERCENTILE;
 use crate::mesh::Mesh;
@@ -21,10 +21,18 @@ pub struct FitInput<'a> {
     pub training: &'a [Mesh],
     /// Held-out meshes for generalisation and matching.
     pub holdout: &'a [Mesh],
-    /// Position in `training` of the mesh the user named as template or atlas.
-    pub template_index: Option<usize>,
+    /// Positions in `training` of the meshes the user named as template or atlases, in the
+    /// order named (empty: the model chooses).
+    pub template_indices: &'a [usize],
     /// Seed: the same inputs and seed give the same model.
     pub seed: u64,
+}
+
+impl FitInput<'_> {
+    /// Position in `training` of the first mesh the user named as template or atlas.
+    pub fn template_index(&self) -> Option<usize> {
+        self.template_indices.first().copied()
+    }
 }
 
 /// What a model type's fit hands to [`finish`].
@@ -42,6 +50,8 @@ pub struct FittedParts<M> {
     pub n_modes: Option<usize>,
     /// Loss per epoch of each trained network.
     pub losses: Vec<LossCurve>,
+    /// Soft clusters (multi-atlas models).
+    pub clusters: Option<ClusterSummary>,
 }
 
 /// Evaluates the fitted model on the held-out meshes and samples, and assembles the
@@ -93,6 +103,7 @@ pub fn finish<M: FittedModel + 'static>(
         holdout_count: input.holdout.len(),
         timings: StageTiming::all(&stages),
         losses: parts.losses,
+        clusters: parts.clusters,
     };
     Ok(FitOutcome {
         model: StoredModel {

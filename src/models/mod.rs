@@ -3,8 +3,9 @@
 //!
 //! Model types (listed once, in [`registry`]): `rsmp` (rigid CPD + soft correspondences +
 //! PCA, thesis ch. 3), `asmg` (graph VAE + attention correspondences + learned atlas +
-//! beta-VAE, thesis ch. 4) and `atlas-r-asmg` (the same trained end to end with a refinement
-//! loss, thesis §5.2). A model has one or more atlases, each with its own connectivity; a
+//! beta-VAE, thesis ch. 4), `atlas-r-asmg` (the same trained end to end with a refinement
+//! loss, thesis §5.2) and `matlas-r-asmg` (several atlases, soft clusters, a generator per
+//! cluster, thesis §5.4). A model has one or more atlases, each with its own connectivity; a
 //! draw says which atlas (cluster) it came from.
 
 pub mod alignment;
@@ -15,6 +16,7 @@ pub mod cohort;
 mod error;
 pub mod evaluation;
 pub mod fitting;
+pub mod matlas_r_asmg;
 pub mod progress;
 pub mod reference;
 pub mod registry;
@@ -202,6 +204,20 @@ pub struct ModelSummary {
     /// Mean training loss per epoch of each trained network (none for closed-form fits).
     #[serde(default)]
     pub losses: Vec<LossCurve>,
+    /// Soft clusters of models with several atlases (absent: one atlas, every mesh in it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clusters: Option<ClusterSummary>,
+}
+
+/// The soft clusters of a multi-atlas fit (thesis eq. 5.13), in mesh order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClusterSummary {
+    /// `π_m`: the probability that a draw comes from cluster `m`.
+    pub priors: Vec<f64>,
+    /// `w_km` of every training mesh (rows in training order, each summing to one).
+    pub training: Vec<Vec<f64>>,
+    /// The weights of every held-out mesh, computed as for an unseen mesh.
+    pub holdout: Vec<Vec<f64>>,
 }
 
 /// The mean training loss per epoch of one network.

@@ -16,13 +16,14 @@ use serde::de::DeserializeOwned;
 use super::fitting::{FitInput, FittedParts, finish};
 use super::progress::{Progress, Stages};
 use super::stored::{FittedModel, decode_named};
-use super::{FitOutcome, ModelError, asmg, atlas_r_asmg, rsmp};
+use super::{FitOutcome, ModelError, asmg, atlas_r_asmg, matlas_r_asmg, rsmp};
 
 /// Every model type, in the order they are listed to users.
 static REGISTRY: &[&dyn ModelKind] = &[
     &Family::<rsmp::Rsmp>(PhantomData),
     &Family::<asmg::Asmg>(PhantomData),
     &Family::<atlas_r_asmg::AtlasRAsmg>(PhantomData),
+    &Family::<matlas_r_asmg::MatlasRAsmg>(PhantomData),
 ];
 
 /// What a model type declares about itself.
@@ -50,8 +51,12 @@ pub trait ModelFamily: Send + Sync + 'static {
     fn check(params: Self::Params) -> Result<Self::Checked, ModelError>;
     /// The parameters as written (for echoing them with defaults).
     fn params(checked: &Self::Checked) -> &Self::Params;
-    /// The mesh id given as template or atlas, if any.
-    fn template_mesh_id(checked: &Self::Checked) -> Option<&str>;
+    /// The mesh ids given as template or atlases, in order (empty: none given).
+    fn template_mesh_ids(checked: &Self::Checked) -> Vec<&str>;
+    /// Parameters implied by a bench label such as `m3` (none by default).
+    fn label_params(_label: &str) -> Option<serde_json::Value> {
+        None
+    }
     /// Fits the model up to its evaluation (which [`finish`] does for every type).
     fn fit(
         params: &Self::Checked,
@@ -66,6 +71,7 @@ trait ModelKind: Send + Sync {
     fn name(&self) -> &'static str;
     fn min_training_meshes(&self) -> usize;
     fn template_field(&self) -> &'static str;
+    fn label_params(&self, label: &str) -> Option<serde_json::Value>;
     fn parse(&self, this: ModelType, params: &serde_json::Value)
     -> Result<ModelParams, ModelError>;
     fn decode(&self, payload: &[u8]) -> Result<Arc<dyn FittedModel>, ModelError>;
@@ -84,6 +90,10 @@ impl<F: ModelFamily> ModelKind for Family<F> {
 
     fn template_field(&self) -> &'static str {
         F::TEMPLATE_FIELD
+    }
+
+    fn label_params(&self, label: &str) -> Option<serde_json::Value> {
+        F::label_params(label)
     }
 
     fn parse(
@@ -146,6 +156,11 @@ impl ModelType {
         self.0.min_training_meshes()
     }
 
+    /// The parameters a bench label such as `m3` implies for this type, if any.
+    pub fn label_params(self, label: &str) -> Option<serde_json::Value> {
+        self.0.label_params(label)
+    }
+
     /// Parses and checks `params` (a JSON object or null) for this type.
     pub fn parse_params(self, params: &serde_json::Value) -> Result<ModelParams, ModelError> {
         self.0.parse(self, params)
@@ -186,7 +201,7 @@ impl Serialize for ModelType {
 /// Checked parameters of one model type, behind one interface.
 trait AnyParams: fmt::Debug + Send + Sync {
     fn to_json(&self) -> serde_json::Value;
-    fn template_mesh_id(&self) -> Option<&str>;
+    fn template_mesh_ids(&self) -> Vec<&str>;
     fn fit(
         &self,
         input: &FitInput<'_>,
@@ -210,8 +225,8 @@ impl<F: ModelFamily> AnyParams for Checked<F> {
         serde_json::to_value(F::params(&self.params)).unwrap_or_default()
     }
 
-    fn template_mesh_id(&self) -> Option<&str> {
-        F::template_mesh_id(&self.params)
+    fn template_mesh_ids(&self) -> Vec<&str> {
+        F::template_mesh_ids(&self.params)
     }
 
     fn fit(
@@ -265,9 +280,9 @@ impl ModelParams {
         self.model_type.0.template_field()
     }
 
-    /// The mesh id the user chose as template or atlas, if any.
-    pub fn template_mesh_id(&self) -> Option<&str> {
-        self.checked.template_mesh_id()
+    /// The mesh ids the user chose as template or atlases, in order (empty: none chosen).
+    pub fn template_mesh_ids(&self) -> Vec<&str> {
+        self.checked.template_mesh_ids()
     }
 
     /// Fits the model these parameters describe to `input.training` and evaluates it on

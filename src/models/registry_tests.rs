@@ -13,7 +13,10 @@ fn field_of(model_type: &str, params: serde_json::Value) -> String {
 
 #[test]
 fn the_registry_lists_every_type_and_refuses_unknown_ones() {
-    assert_eq!(ModelType::names(), ["rsmp", "asmg", "atlas-r-asmg"]);
+    assert_eq!(
+        ModelType::names(),
+        ["rsmp", "asmg", "atlas-r-asmg", "matlas-r-asmg"]
+    );
     for t in ModelType::all() {
         assert_eq!(ModelType::from_name(t.as_str()), Some(t));
         assert!(t.min_training_meshes() >= 3, "{t}");
@@ -56,12 +59,12 @@ fn asmg_params_fill_in_defaults_and_reject_bad_fields() {
     assert_eq!(json["latent_dim"], 16);
     assert_eq!(json["smoothing"], "displacement");
     assert!(json["temperature"].is_null());
-    assert_eq!(p.template_mesh_id(), None);
+    assert_eq!(p.template_mesh_ids(), Vec::<&str>::new());
     assert_eq!(p.template_field(), "atlas");
     let p = asmg
         .parse_params(&json!({"features": "hybrid", "atlas": "m1", "temperature": 10000.0}))
         .unwrap();
-    assert_eq!(p.template_mesh_id(), Some("m1"));
+    assert_eq!(p.template_mesh_ids(), vec!["m1"]);
     assert_eq!(p.to_json()["features"], "hybrid");
     assert_eq!(
         field_of("asmg", json!({"features": "spectral"})),
@@ -84,7 +87,7 @@ fn atlas_r_asmg_params_add_the_refinement_and_name_unknown_fields() {
     assert_eq!(json["w_lap"], 1.2);
     assert!(json["epochs_refine"].as_u64().unwrap() >= 1);
     assert_eq!(json["features"], "hybrid");
-    assert_eq!(p.template_mesh_id(), Some("m7"));
+    assert_eq!(p.template_mesh_ids(), vec!["m7"]);
     assert_eq!(
         field_of("atlas-r-asmg", json!({"w_chamfer": 1.0})),
         "w_chamfer"

@@ -112,20 +112,34 @@ impl ShapeScaling {
     /// The mean shape and spread of the training shapes (equally long, flattened
     /// `[x, y, z, …]`); a spread of zero (one shape, or identical ones) becomes 1 mm.
     pub fn fit(shapes: &[Vec<f32>]) -> Self {
+        Self::fit_weighted(shapes, None)
+    }
+
+    /// [`Self::fit`] with a weight `≥ 0` per shape (`None`: all equal), for a generator of
+    /// one soft cluster.
+    pub fn fit_weighted(shapes: &[Vec<f32>], weights: Option<&[f32]>) -> Self {
         let width = shapes.first().map_or(0, Vec::len);
-        let n = shapes.len().max(1) as f64;
+        let weight = |k: usize| {
+            weights
+                .and_then(|w| w.get(k))
+                .map_or(1.0, |w| f64::from(*w))
+        };
+        let n: f64 = (0..shapes.len()).map(weight).sum::<f64>();
+        let n = if n > 0.0 { n } else { 1.0 };
         let mut mean = vec![0.0f64; width];
-        for shape in shapes {
+        for (k, shape) in shapes.iter().enumerate() {
             for (m, v) in mean.iter_mut().zip(shape) {
-                *m += f64::from(*v) / n;
+                *m += weight(k) * f64::from(*v) / n;
             }
         }
         let squares: f64 = shapes
             .iter()
-            .flat_map(|s| {
+            .enumerate()
+            .flat_map(|(k, s)| {
+                let mean = &mean;
                 s.iter()
-                    .zip(&mean)
-                    .map(|(v, m)| (f64::from(*v) - m).powi(2))
+                    .zip(mean)
+                    .map(move |(v, m)| weight(k) * (f64::from(*v) - m).powi(2))
             })
             .sum();
         let spread = (squares / (n * width.max(1) as f64)).sqrt() as f32;
@@ -210,18 +224,34 @@ impl BetaVae {
     }
 
     /// Loss of a batch, averaged over its shapes: ½‖x̂ − x‖² + β·KL(q(z|x) ‖ N(0, I)), with
-    /// `z = μ + exp(½ log σ²)·noise` and `noise` `[B, L]` standard normal.
-    pub fn loss(&self, x: Tensor<2>, noise: Tensor<2>, beta: f64) -> Tensor<1> {
+    /// `z = μ + exp(½ log σ²)·noise` and `noise` `[B, L]` standard normal. With `weights`
+    /// (`[B, 1]`), each shape's loss is multiplied by its weight before the average (the
+    /// generator of one soft cluster, thesis eq. 5.17).
+    pub fn loss(
+        &self,
+        x: Tensor<2>,
+        noise: Tensor<2>,
+        beta: f64,
+        weights: Option<Tensor<2>>,
+    ) -> Tensor<1> {
         let [b, _] = x.dims();
         let (mu, log_var) = self.encode(x.clone());
         let z = mu.clone() + log_var.clone().mul_scalar(0.5).exp() * noise;
-        let reconstruction = (self.decode(z) - x).powi_scalar(2).sum().mul_scalar(0.5);
+        let reconstruction = (self.decode(z) - x)
+            .powi_scalar(2)
+            .sum_dim(1)
+            .mul_scalar(0.5);
         // KL = ½ Σ (μ² + σ² − 1 − log σ²).
         let kl = (mu.powi_scalar(2) + log_var.clone().exp() - log_var)
             .sub_scalar(1.0)
-            .sum()
+            .sum_dim(1)
             .mul_scalar(0.5);
-        (reconstruction + kl.mul_scalar(beta)).div_scalar(b.max(1) as f64)
+        let per_shape = reconstruction + kl.mul_scalar(beta);
+        let per_shape = match weights {
+            Some(w) => per_shape * w,
+            None => per_shape,
+        };
+        per_shape.sum().div_scalar(b.max(1) as f64)
     }
 }
 
@@ -264,7 +294,7 @@ mod tests {
         let at = |beta| {
             f64::from(
                 model
-                    .loss(x.clone(), zero.clone(), beta)
+                    .loss(x.clone(), zero.clone(), beta, None)
                     .into_scalar::<f32>(),
             )
         };

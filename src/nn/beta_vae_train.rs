@@ -7,7 +7,6 @@ use burn::store::ModuleRecord;
 use burn::tensor::{Bytes, Tensor, TensorData};
 
 use nalgebra::DMatrix;
-use serde::{Deserialize, Serialize};
 
 use super::beta_vae::{BetaVae, BetaVaeConfig, ShapeScaling};
 use super::device::{
@@ -15,6 +14,7 @@ use super::device::{
 };
 use super::error::{NnError, check_finite, require};
 use super::init::standard_normal;
+use super::latent_prior::LatentPrior;
 use super::train::{Monitor, adam, check_schedule, run_epochs, step_decay};
 
 /// How the beta-VAE is trained (SPEC §2.6; β per §2.9).
@@ -63,81 +63,6 @@ impl BetaVaeTraining {
             "lr_gamma",
             "must be a positive number",
         )
-    }
-}
-
-/// A Gaussian over latent codes, `z = centre + mixing · ε` with `ε ~ N(0, I)`, `[L]`.
-///
-/// The standard normal is the VAE's own prior. Fitted to the codes of the training shapes
-/// ([`TrainedBetaVae::aggregate_prior`]) it draws shapes as varied as the training set: with a
-/// small β the codes spread far beyond N(0, I), and draws from it were all close to the mean
-/// shape (volume sd 1–3 ml against 14 ml on 40 LV phantoms). The codes of the training
-/// shapes are correlated, so the Gaussian keeps their full covariance: drawing every
-/// dimension independently loses the covariances, and with them much of the spread along
-/// directions such as size that several dimensions share.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct LatentPrior {
-    /// Mean code, `[L]`.
-    pub centre: Vec<f32>,
-    /// Standard deviation per latent dimension, `[L]` (the square roots of the diagonal of
-    /// the covariance).
-    pub spread: Vec<f32>,
-    /// Lower-triangular Cholesky factor of the covariance, `[L, L]` row-major; empty: the
-    /// dimensions are independent with standard deviations `spread`.
-    pub mixing: Vec<f32>,
-}
-
-impl LatentPrior {
-    /// N(0, I) in `latent` dimensions.
-    pub fn standard(latent: usize) -> Self {
-        Self {
-            centre: vec![0.0; latent],
-            spread: vec![1.0; latent],
-            mixing: Vec::new(),
-        }
-    }
-
-    /// The Gaussian with mean `centre` and covariance `covariance` (`[L, L]`, symmetric
-    /// positive semi-definite; a tiny ridge is added when it is singular).
-    pub fn with_covariance(centre: Vec<f32>, covariance: &DMatrix<f64>) -> Self {
-        let latent = centre.len();
-        let spread = (0..latent)
-            .map(|d| covariance[(d, d)].max(0.0).sqrt() as f32)
-            .collect();
-        let ridge = 1e-9 * covariance.trace().abs().max(1e-12) / latent.max(1) as f64;
-        let factor = [0.0, ridge, 1e3 * ridge].into_iter().find_map(|r| {
-            let regularised = covariance + DMatrix::<f64>::identity(latent, latent) * r;
-            regularised.cholesky().map(|c| c.l())
-        });
-        let mixing = factor.map_or_else(Vec::new, |l| {
-            (0..latent)
-                .flat_map(|i| (0..latent).map(move |j| (i, j)))
-                .map(|(i, j)| l[(i, j)] as f32)
-                .collect()
-        });
-        Self {
-            centre,
-            spread,
-            mixing,
-        }
-    }
-
-    /// The code of a standard-normal draw `ε` (`[L]`).
-    pub fn code(&self, standard: &[f32]) -> Vec<f32> {
-        let latent = self.centre.len();
-        if self.mixing.len() != latent * latent {
-            return standard
-                .iter()
-                .zip(self.centre.iter().zip(&self.spread))
-                .map(|(e, (c, s))| c + s * e)
-                .collect();
-        }
-        (0..latent)
-            .map(|i| {
-                let row = &self.mixing[i * latent..(i + 1) * latent];
-                self.centre[i] + row.iter().zip(standard).map(|(l, e)| l * e).sum::<f32>()
-            })
-            .collect()
     }
 }
 
@@ -191,14 +116,51 @@ pub fn train_beta_vae(
     training: &BetaVaeTraining,
     monitor: &mut dyn Monitor,
 ) -> Result<TrainedBetaVae, NnError> {
+    train_weighted_beta_vae(shapes, None, config, training, monitor)
+}
+
+/// Weights `≥ 0`, one per shape, rescaled to mean 1 (so that the step sizes are those of
+/// unweighted training); an error when they are not finite, negative or all zero.
+fn unit_mean_weights(weights: &[f32], count: usize) -> Result<Vec<f32>, NnError> {
+    require(
+        weights.len() == count,
+        "weights",
+        "need one weight per shape",
+    )?;
+    require(
+        weights.iter().all(|w| w.is_finite() && *w >= 0.0),
+        "weights",
+        "must be finite and non-negative",
+    )?;
+    let mean = weights.iter().map(|w| f64::from(*w)).sum::<f64>() / count.max(1) as f64;
+    require(mean > 0.0, "weights", "must not all be zero")?;
+    Ok(weights
+        .iter()
+        .map(|w| (f64::from(*w) / mean) as f32)
+        .collect())
+}
+
+/// [`train_beta_vae`] with a weight per shape (`None`: all equal): each shape's loss and
+/// its share of the standardisation count by its weight (the generator of one soft
+/// cluster, thesis eq. 5.17).
+pub fn train_weighted_beta_vae(
+    shapes: &[Vec<f32>],
+    weights: Option<&[f32]>,
+    config: &BetaVaeConfig,
+    training: &BetaVaeTraining,
+    monitor: &mut dyn Monitor,
+) -> Result<TrainedBetaVae, NnError> {
     config.validate()?;
     training.validate()?;
     if shapes.is_empty() {
         return Err(NnError::EmptyDataset);
     }
     check_shapes(shapes, config.d_in)?;
+    let weights = weights
+        .map(|w| unit_mean_weights(w, shapes.len()))
+        .transpose()?;
     let device = training_device();
-    let scaling = ShapeScaling::fit(shapes);
+    let scaling = ShapeScaling::fit_weighted(shapes, weights.as_deref());
     let model = config.init(
         scaling.clone(),
         &mut rng(training.seed, STREAM_INIT),
@@ -220,7 +182,11 @@ pub fn train_beta_vae(
                 TensorData::new(noise, [batch.len(), config.latent]),
                 &device,
             );
-            let loss = model.loss(x, noise, training.beta);
+            let batch_weights = weights.as_ref().map(|w| {
+                let values: Vec<f32> = batch.iter().map(|&i| w[i]).collect();
+                Tensor::from_data(TensorData::new(values, [batch.len(), 1]), &device)
+            });
+            let loss = model.loss(x, noise, training.beta, batch_weights);
             let value = f64::from(loss.clone().into_scalar::<f32>());
             let grads = GradientsParams::from_grads(loss.backward(), &model);
             let lr = step_decay(training.lr, epoch, training.lr_step, training.lr_gamma);
@@ -258,26 +224,55 @@ impl TrainedBetaVae {
     /// dimension, the mean of the encoder means and the spread of the mixture of the
     /// encoder's Gaussians.
     pub fn aggregate_prior(&self, shapes: &[Vec<f32>]) -> Result<LatentPrior, NnError> {
+        self.weighted_aggregate_prior(shapes, None)
+    }
+
+    /// [`Self::aggregate_prior`] with a weight per shape (`None`: all equal): the Gaussian
+    /// of one soft cluster's codes.
+    pub fn weighted_aggregate_prior(
+        &self,
+        shapes: &[Vec<f32>],
+        weights: Option<&[f32]>,
+    ) -> Result<LatentPrior, NnError> {
         if shapes.is_empty() {
             return Err(NnError::EmptyDataset);
         }
+        let w: Vec<f64> = match weights {
+            Some(w) => unit_mean_weights(w, shapes.len())?
+                .into_iter()
+                .map(f64::from)
+                .collect(),
+            None => vec![1.0; shapes.len()],
+        };
         let (mu, log_var) = self.encode(shapes)?;
         let latent = self.config.latent;
         let (mu, log_var) = (split(mu, latent), split(log_var, latent));
-        let n = shapes.len() as f64;
+        let n: f64 = w.iter().sum();
         let centre: Vec<f64> = (0..latent)
-            .map(|d| mu.iter().map(|r| f64::from(r[d])).sum::<f64>() / n)
+            .map(|d| {
+                mu.iter()
+                    .zip(&w)
+                    .map(|(r, w)| w * f64::from(r[d]))
+                    .sum::<f64>()
+                    / n
+            })
             .collect();
         // Covariance of the encoder means plus the mean of the encoder's own variances: the
         // covariance of the mixture of the training shapes' posteriors.
         let covariance = DMatrix::<f64>::from_fn(latent, latent, |i, j| {
             let between: f64 = mu
                 .iter()
-                .map(|r| (f64::from(r[i]) - centre[i]) * (f64::from(r[j]) - centre[j]))
+                .zip(&w)
+                .map(|(r, w)| w * (f64::from(r[i]) - centre[i]) * (f64::from(r[j]) - centre[j]))
                 .sum::<f64>()
                 / n;
             let within = if i == j {
-                log_var.iter().map(|r| f64::from(r[i]).exp()).sum::<f64>() / n
+                log_var
+                    .iter()
+                    .zip(&w)
+                    .map(|(r, w)| w * f64::from(r[i]).exp())
+                    .sum::<f64>()
+                    / n
             } else {
                 0.0
             };

@@ -16,17 +16,21 @@ pub mod graph;
 pub mod graph_vae;
 mod graph_vae_train;
 mod init;
+mod latent_prior;
 pub mod refine;
 pub mod slots;
 pub mod train;
 
 pub use beta_vae::{BetaVaeConfig, ShapeScaling};
-pub use beta_vae_train::{BetaVaeTraining, LatentPrior, TrainedBetaVae, train_beta_vae};
+pub use beta_vae_train::{
+    BetaVaeTraining, TrainedBetaVae, train_beta_vae, train_weighted_beta_vae,
+};
 pub use error::NnError;
 pub use feast::{FeaStConfig, FeaStConv};
 pub use graph::{Features, GraphBatch, GraphSample, PositionScaling};
 pub use graph_vae::GraphVaeConfig;
 pub use graph_vae_train::{GraphVaeTraining, TrainedGraphVae, train_graph_vae};
+pub use latent_prior::LatentPrior;
 pub use refine::{GraphRefiner, RefineEpoch, RefineObjective, RefineTerms, RefineTraining};
 pub use slots::{GraphTensors, SlotLayout};
 pub use train::{Flow, Monitor, Unmonitored};

@@ -13,6 +13,10 @@
 //! gradient is exactly the refinement's. Memory stays linear in the vertex counts: no
 //! nearest-neighbour search or sparse solve enters the graph. λ_k is held constant within a
 //! step (computed from the detached scores).
+//!
+//! With several atlases (mAtlas-R-ASMG), every atlas rides along in every batch, each shape
+//! is normalised to each atlas and its terms on atlas `m` count by its soft weight `w_km`;
+//! pairs of weight below [`MIN_PAIR_WEIGHT`] are skipped.
 
 use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
@@ -28,6 +32,8 @@ use super::train::{Monitor, adam, check_schedule, epoch_batches, go_on};
 
 /// Mixed into the seed so the refinement's batch order and noise differ from Ψ's training.
 const REFINE_SEED_SALT: u64 = 0x5eed_4ef1;
+/// Shape–atlas pairs of smaller soft weight add nothing to a refinement step.
+pub const MIN_PAIR_WEIGHT: f64 = 1e-3;
 /// Squared norms below this count as zero when embeddings are made unit length.
 const NORM_FLOOR: f64 = 1e-12;
 
@@ -59,9 +65,14 @@ pub struct RefineTerms {
 pub trait RefineObjective {
     /// The inverse temperature λ for scores of this (population) variance.
     fn lambda(&self, score_variance: f64) -> f64;
-    /// The terms of shape `k` for its normalised shape `h` (`[N_μ, 3]`, mm) and their
-    /// gradient with respect to `h` (`[N_μ, 3]`).
-    fn shape(&mut self, k: usize, h: &[[f64; 3]]) -> Result<(RefineTerms, Vec<[f64; 3]>), NnError>;
+    /// The terms of shape `k` for its normalised shape `h` on atlas `m` (`[N_μm, 3]`, mm)
+    /// and their gradient with respect to `h` (`[N_μm, 3]`).
+    fn shape(
+        &mut self,
+        k: usize,
+        m: usize,
+        h: &[[f64; 3]],
+    ) -> Result<(RefineTerms, Vec<[f64; 3]>), NnError>;
 }
 
 /// Mean losses per shape of one refinement epoch.
@@ -114,21 +125,31 @@ impl GraphRefiner {
         })
     }
 
-    /// One pass over `samples` with `atlas` as the atlas graph; `None` when the monitor
-    /// asked to finish early.
+    /// One pass over `samples` with `atlases` as the atlas graphs; `weights[k][m]` is shape
+    /// `k`'s soft weight on atlas `m` (one atlas: all 1). `None` when the monitor asked to
+    /// finish early.
     pub fn epoch(
         &mut self,
         samples: &[GraphSample],
-        atlas: &GraphSample,
+        atlases: &[GraphSample],
+        weights: &[Vec<f64>],
         objective: &mut dyn RefineObjective,
         monitor: &mut dyn Monitor,
     ) -> Result<Option<RefineEpoch>, NnError> {
-        if samples.is_empty() {
+        if samples.is_empty() || atlases.is_empty() {
             return Err(NnError::EmptyDataset);
+        }
+        if weights.len() != samples.len() || weights.iter().any(|w| w.len() != atlases.len()) {
+            return Err(NnError::Objective(format!(
+                "{} weight rows for {} shapes and {} atlases",
+                weights.len(),
+                samples.len(),
+                atlases.len()
+            )));
         }
         let mut sums = RefineEpoch::default();
         for batch in epoch_batches(samples.len(), self.training.batch_size, &mut self.shuffle) {
-            let step = self.step(samples, atlas, &batch, objective)?;
+            let step = self.step(samples, atlases, weights, &batch, objective)?;
             sums.graph += step.graph * batch.len() as f64;
             sums.chamfer += step.chamfer;
             sums.laplacian += step.laplacian;
@@ -155,12 +176,13 @@ impl GraphRefiner {
     fn step(
         &mut self,
         samples: &[GraphSample],
-        atlas: &GraphSample,
+        atlases: &[GraphSample],
+        weights: &[Vec<f64>],
         batch: &[usize],
         objective: &mut dyn RefineObjective,
     ) -> Result<RefineEpoch, NnError> {
         let mut members: Vec<&GraphSample> = batch.iter().map(|&i| &samples[i]).collect();
-        members.push(atlas);
+        members.extend(atlases);
         let graph = GraphBatch::new(&members, &self.scaling);
         let d_z = self.trained.config.d_z;
         let noise = standard_normal(graph.node_count() * d_z, &mut self.noise);
@@ -168,7 +190,7 @@ impl GraphRefiner {
             TensorData::new(noise, [graph.node_count(), d_z]),
             &self.device,
         );
-        let weights = LossWeights {
+        let loss_weights = LossWeights {
             kl: self.training.w_kl,
             normals: self.training.w_norm,
         };
@@ -181,38 +203,44 @@ impl GraphRefiner {
             &graph.tensors(&self.device),
             noise,
             members.len(),
-            weights,
+            loss_weights,
         );
         let ranges = &graph.node_ranges;
-        let atlas_rows = ranges[ranges.len() - 1].clone();
-        let z_atlas = unit_rows(mu.clone().narrow(0, atlas_rows.start, atlas_rows.len()));
+        let rows_of = |i: usize| unit_rows(mu.clone().narrow(0, ranges[i].start, ranges[i].len()));
+        let z_atlases: Vec<Tensor<2>> = (batch.len()..members.len()).map(rows_of).collect();
         let mut terms = RefineEpoch {
             graph: f64::from(loss_psi.clone().into_scalar::<f32>()),
             ..RefineEpoch::default()
         };
         let mut surrogate: Option<Tensor<1>> = None;
         for (b, &k) in batch.iter().enumerate() {
-            let rows = ranges[b].clone();
-            let z_k = unit_rows(mu.clone().narrow(0, rows.start, rows.len()));
-            let h = normalised_shape(z_atlas.clone(), z_k, &samples[k], objective, &self.device);
-            let (t, gradient) = objective.shape(k, &to_rows(h.clone()))?;
-            terms.chamfer += t.chamfer;
-            terms.laplacian += t.laplacian;
-            let g = Tensor::from_data(
-                TensorData::new(
-                    gradient
-                        .iter()
-                        .flat_map(|p| p.map(|c| c as f32))
-                        .collect::<Vec<f32>>(),
-                    [gradient.len(), 3],
-                ),
-                &self.device,
-            );
-            let inner = (h * g).sum();
-            surrogate = Some(match surrogate {
-                Some(acc) => acc + inner,
-                None => inner,
-            });
+            let z_k = rows_of(b);
+            for (m, z_atlas) in z_atlases.iter().enumerate() {
+                let w = weights[k][m];
+                if w < MIN_PAIR_WEIGHT {
+                    continue;
+                }
+                let h = normalised_shape(
+                    z_atlas.clone(),
+                    z_k.clone(),
+                    &samples[k],
+                    objective,
+                    &self.device,
+                );
+                let (t, gradient) = objective.shape(k, m, &to_rows(h.clone()))?;
+                terms.chamfer += w * t.chamfer;
+                terms.laplacian += w * t.laplacian;
+                let g: Vec<f32> = gradient
+                    .iter()
+                    .flat_map(|p| p.map(|c| (w * c) as f32))
+                    .collect();
+                let g = Tensor::from_data(TensorData::new(g, [gradient.len(), 3]), &self.device);
+                let inner = (h * g).sum();
+                surrogate = Some(match surrogate {
+                    Some(acc) => acc + inner,
+                    None => inner,
+                });
+            }
         }
         let mut loss = loss_psi;
         if let Some(s) = surrogate {

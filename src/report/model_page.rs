@@ -17,6 +17,10 @@ pub struct ModelPage<'a> {
     pub model_type: &'a str,
     /// The stored summary (evaluation, timings, explained variance, losses).
     pub summary: &'a ModelSummary,
+    /// Training mesh ids, in fit order.
+    pub training_mesh_ids: &'a [String],
+    /// Held-out mesh ids, in fit order.
+    pub holdout_mesh_ids: &'a [String],
 }
 
 /// The page as HTML; its plots are those of [`model_plot_names`].
@@ -35,6 +39,7 @@ pub fn model_page(m: &ModelPage<'_>) -> String {
         escape(&e.distance)
     );
     body.push_str(&metric_table(m));
+    body.push_str(&clusters_section(m));
     body.push_str("<h2>Distributions</h2><div class=\"plots\">");
     for name in model_plot_names(m) {
         if let Ok(svg) = model_plot(m, &name) {
@@ -47,6 +52,73 @@ pub fn model_page(m: &ModelPage<'_>) -> String {
     }
     body.push_str(&timing_table(s));
     page(&format!("Model {}", m.model_id), &body)
+}
+
+/// Each atlas (vertices, faces, Euler characteristic, prior) and, for a multi-atlas
+/// model, the soft weight of every mesh in every cluster.
+fn clusters_section(m: &ModelPage<'_>) -> String {
+    let s = m.summary;
+    let atlases = if s.atlases.is_empty() {
+        std::slice::from_ref(&s.atlas)
+    } else {
+        s.atlases.as_slice()
+    };
+    let prior = |i: usize| {
+        s.clusters
+            .as_ref()
+            .and_then(|c| c.priors.get(i).copied())
+            .unwrap_or(1.0 / atlases.len() as f64)
+    };
+    let mut t = String::from(
+        "<h2>Atlases and clusters</h2><table><tr><th>atlas</th><th>vertices</th><th>faces</th><th>Euler characteristic</th><th>prior π</th></tr>",
+    );
+    for (i, a) in atlases.iter().enumerate() {
+        let chi = a
+            .euler_characteristic
+            .map_or_else(|| "–".to_owned(), |c| c.to_string());
+        let _ = write!(
+            t,
+            "<tr><th>{i}</th><td>{}</td><td>{}</td><td>{chi}</td><td>{:.3}</td></tr>",
+            a.vertex_count,
+            a.face_count,
+            prior(i)
+        );
+    }
+    t.push_str("</table>");
+    let Some(c) = &s.clusters else {
+        t.push_str("<p class=\"note\">One atlas: every mesh is in cluster 0.</p>");
+        return t;
+    };
+    t.push_str("<p>Soft weight w<sub>km</sub> of each mesh in each cluster (eq. 5.13); the largest is in bold.</p><table class=\"weights\"><tr><th>mesh</th><th>set</th>");
+    for i in 0..atlases.len() {
+        let _ = write!(t, "<th>cluster {i}</th>");
+    }
+    t.push_str("</tr>");
+    let rows = (m
+        .training_mesh_ids
+        .iter()
+        .zip(&c.training)
+        .map(|r| (r, "training")))
+    .chain(
+        m.holdout_mesh_ids
+            .iter()
+            .zip(&c.holdout)
+            .map(|r| (r, "held out")),
+    );
+    for ((id, weights), set) in rows {
+        let best = crate::models::clusters::winning_cluster(weights);
+        let _ = write!(t, "<tr><td>{}</td><td>{set}</td>", escape(id));
+        for (i, w) in weights.iter().enumerate() {
+            if i == best {
+                let _ = write!(t, "<td><b>{w:.3}</b></td>");
+            } else {
+                let _ = write!(t, "<td>{w:.3}</td>");
+            }
+        }
+        t.push_str("</tr>");
+    }
+    t.push_str("</table>");
+    t
 }
 
 fn summary_cells(s: Option<&DistanceSummary>) -> String {

@@ -214,6 +214,8 @@ mod tests {
             model_id: "m1",
             model_type: "asmg",
             summary,
+            training_mesh_ids: &[],
+            holdout_mesh_ids: &[],
         }
     }
 

@@ -124,7 +124,12 @@ fn nothing_above_models_names_a_model_type() {
     let mut offences = Vec::new();
     for module in ABOVE_MODELS {
         for (file, source) in module_sources(module) {
-            for path in ["models::rsmp", "models::asmg", "models::atlas_r_asmg"] {
+            for path in [
+                "models::rsmp",
+                "models::asmg",
+                "models::atlas_r_asmg",
+                "models::matlas_r_asmg",
+            ] {
                 if uses(&source, path) {
                     offences.push(format!("{file} uses {path}"));
                 }

@@ -32,9 +32,19 @@ pub(crate) fn tiny_params() -> Value {
 }
 
 pub(crate) async fn upload_small_phantoms(s: &TestServer, count: usize, seed: u64) -> String {
-    let dataset = s.dataset("tiny phantoms", "lv").await;
+    upload_phantoms(s, Family::Lv, count, seed).await
+}
+
+/// Uploads `count` phantoms of `family`, each simplified to a few hundred vertices.
+pub(crate) async fn upload_phantoms(
+    s: &TestServer,
+    family: Family,
+    count: usize,
+    seed: u64,
+) -> String {
+    let dataset = s.dataset("tiny phantoms", family.as_str()).await;
     let mut form = Form::new();
-    for p in phantom::generate(Family::Lv, count, seed) {
+    for p in phantom::generate(family, count, seed) {
         let small = simplify(&p.mesh, PHANTOM_VERTICES).unwrap().mesh;
         form = form.part(
             "file",

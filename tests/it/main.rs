@@ -9,6 +9,7 @@ mod cli;
 mod datasets;
 mod jobs;
 mod kits19;
+mod matlas_r_asmg;
 mod meshes;
 mod nifti;
 mod openapi;

@@ -67,6 +67,20 @@ pub async fn plots_on_page(s: &TestServer, path: &str) -> usize {
     rendered
 }
 
+/// The page at `path` as Chromium rendered it (as served when the browser is skipped).
+pub async fn rendered_page(s: &TestServer, path: &str) -> String {
+    let response = s.client.get(s.url(path)).send().await.unwrap();
+    assert_eq!(response.status(), StatusCode::OK, "{path}");
+    let served = response.text().await.unwrap();
+    let Some(browser) = browser() else {
+        return served;
+    };
+    let url = s.url(path);
+    tokio::task::spawn_blocking(move || rendered_dom(&browser, &url))
+        .await
+        .unwrap()
+}
+
 /// GETs `path`, asserts a 200 with `content_type`, returns the body.
 async fn fetch(s: &TestServer, path: &str, content_type: &str) -> Vec<u8> {
     let response = s.client.get(s.url(path)).send().await.unwrap();

@@ -18,7 +18,7 @@ use crate::models::workers::map_items;
 use crate::models::{FitInput, FittedParts, LossCurve, ModelError};
 use crate::nn::{
     BetaVaeConfig, BetaVaeTraining, GraphSample, GraphVaeConfig, GraphVaeTraining, TrainedGraphVae,
-    train_beta_vae, train_graph_vae,
+    train_graph_vae, train_weighted_beta_vae,
 };
 
 /// Fewest training meshes an ASMG fit accepts.
@@ -160,10 +160,16 @@ pub(crate) fn starting_atlas(
                 },
                 aligned,
             )?;
-            AtlasInit::Given(simplified(&nearest, params.atlas_vertices)?)
+            return simplified_atlas(&nearest, params);
         }
     };
     initial_atlas(&choice, aligned)
+}
+
+/// A training mesh simplified to `atlas_vertices`, checked as an initial atlas.
+pub(crate) fn simplified_atlas(mesh: &Mesh, params: &AsmgParams) -> Result<Mesh, ModelError> {
+    let atlas = simplified(mesh, params.atlas_vertices)?;
+    initial_atlas(&AtlasInit::Given(atlas), std::slice::from_ref(mesh))
 }
 
 pub(crate) fn learn(
@@ -219,7 +225,7 @@ pub(crate) fn check_atlas_choice(
     params: &AsmgParams,
     input: &FitInput<'_>,
 ) -> Result<(), ModelError> {
-    if let (Some(id), None) = (params.atlas_mesh_id(), input.template_index) {
+    if let (Some(id), None) = (params.atlas_mesh_id(), input.template_index()) {
         return Err(ModelError::invalid(
             "atlas",
             format!("mesh {id} is not among the training meshes"),
@@ -238,7 +244,7 @@ pub(crate) fn align_input(
     check_atlas_choice(params, input)?;
     stages.enter("alignment");
     let reference_index = input
-        .template_index
+        .template_index()
         .unwrap_or_else(|| median_resolution_index(input.training));
     align_training(input.training, params, reference_index, stages, progress)
 }
@@ -257,6 +263,84 @@ pub(crate) struct Correspondences {
     pub(crate) losses: Vec<LossCurve>,
 }
 
+/// One generator's training data: shapes on one atlas and, for a soft cluster, a weight
+/// per shape.
+pub(crate) struct GeneratorData<'a> {
+    /// Ψ (shared by every atlas).
+    pub(crate) graph: &'a TrainedGraphVae,
+    /// The atlas (mm, model frame).
+    pub(crate) atlas: Mesh,
+    /// The mesh inputs are registered to.
+    pub(crate) reference: &'a Mesh,
+    /// The smoothed normalised shapes on `atlas`, `[N_μ, 3]` mm each.
+    pub(crate) shapes: &'a [Vec<[f64; 3]>],
+    /// Weight per shape (`None`: all equal).
+    pub(crate) weights: Option<&'a [f32]>,
+    /// `(m, M)` for the generator of cluster `m` of `M`; `None` for a model of one atlas.
+    pub(crate) cluster: Option<(usize, usize)>,
+}
+
+/// Trains a generator (beta-VAE) on one atlas's shapes and builds the model of that atlas,
+/// with its loss curve (`beta_vae`, or `beta_vae_{m}` for cluster `m`).
+pub(crate) fn train_generator(
+    data: GeneratorData<'_>,
+    params: &AsmgParams,
+    seed: u64,
+    stages: &Stages,
+    progress: &mut dyn Progress,
+) -> Result<(AsmgModel, LossCurve), ModelError> {
+    let (curve_name, stage_name) = match data.cluster {
+        None => ("beta_vae".to_owned(), "generator".to_owned()),
+        Some((m, count)) => (
+            format!("beta_vae_{m}"),
+            format!("generator {} of {count}", m + 1),
+        ),
+    };
+    let shapes: Vec<Vec<f32>> = data.shapes.iter().map(|h| flatten_f32(h)).collect();
+    let atlas = data.atlas;
+    let vae_config = BetaVaeConfig::new(3 * atlas.vertex_count()).with_latent(params.latent_dim);
+    let vae_training = BetaVaeTraining {
+        epochs: params.epochs_vae,
+        batch_size: params.batch_size_vae,
+        lr: params.lr,
+        beta: params.beta,
+        seed,
+        ..BetaVaeTraining::default()
+    };
+    let mut monitor = StageMonitor::new(stages, progress, &stage_name, params.epochs_vae);
+    let generator = train_weighted_beta_vae(
+        &shapes,
+        data.weights,
+        &vae_config,
+        &vae_training,
+        &mut monitor,
+    )
+    .map_err(nn_error)?;
+    let curve = LossCurve {
+        network: curve_name,
+        per_epoch: monitor.losses,
+    };
+    let weights = (
+        data.graph.to_bytes().map_err(nn_error)?,
+        generator.to_bytes().map_err(nn_error)?,
+    );
+    let sizes = NetworkSizes::of(&data.graph.config, &generator.config);
+    let latent_prior = generator
+        .weighted_aggregate_prior(&shapes, data.weights)
+        .map_err(nn_error)?;
+    let networks = AsmgModel::derive(data.graph.clone(), generator, &atlas, params)?;
+    let mut model = AsmgModel::new(
+        atlas,
+        data.reference.clone(),
+        params.clone(),
+        sizes,
+        weights,
+        Some(networks),
+    );
+    model.latent_prior = Some(latent_prior);
+    Ok((model, curve))
+}
+
 /// Trains the generator on the smoothed normalised shapes and builds the model.
 pub(crate) fn train_generator_and_build(
     learned: Correspondences,
@@ -273,39 +357,16 @@ pub(crate) fn train_generator_and_build(
         mut losses,
     } = learned;
     stages.enter("generator");
-    let shapes: Vec<Vec<f32>> = smoothed.iter().map(|h| flatten_f32(h)).collect();
-    let vae_config = BetaVaeConfig::new(3 * atlas.vertex_count()).with_latent(params.latent_dim);
-    let vae_training = BetaVaeTraining {
-        epochs: params.epochs_vae,
-        batch_size: params.batch_size_vae,
-        lr: params.lr,
-        beta: params.beta,
-        seed,
-        ..BetaVaeTraining::default()
-    };
-    let mut monitor = StageMonitor::new(stages, progress, "generator", params.epochs_vae);
-    let generator =
-        train_beta_vae(&shapes, &vae_config, &vae_training, &mut monitor).map_err(nn_error)?;
-    losses.push(LossCurve {
-        network: "beta_vae".to_owned(),
-        per_epoch: monitor.losses,
-    });
-    let weights = (
-        graph.to_bytes().map_err(nn_error)?,
-        generator.to_bytes().map_err(nn_error)?,
-    );
-    let sizes = NetworkSizes::of(&graph.config, &generator.config);
-    let latent_prior = generator.aggregate_prior(&shapes).map_err(nn_error)?;
-    let networks = AsmgModel::derive(graph, generator, &atlas, params)?;
-    let mut model = AsmgModel::new(
+    let data = GeneratorData {
+        graph: &graph,
         atlas,
-        aligned.reference,
-        params.clone(),
-        sizes,
-        weights,
-        Some(networks),
-    );
-    model.latent_prior = Some(latent_prior);
+        reference: &aligned.reference,
+        shapes: &smoothed,
+        weights: None,
+        cluster: None,
+    };
+    let (model, curve) = train_generator(data, params, seed, stages, progress)?;
+    losses.push(curve);
     Ok(FittedParts {
         model,
         aligned_training: aligned.vertices,
@@ -314,6 +375,7 @@ pub(crate) fn train_generator_and_build(
         explained_variance: None,
         n_modes: None,
         losses,
+        clusters: None,
     })
 }
 
@@ -332,7 +394,7 @@ pub(crate) fn fit(
     drop(samples);
 
     stages.enter("atlas");
-    let initial = starting_atlas(params, &aligned.meshes, input.template_index)?;
+    let initial = starting_atlas(params, &aligned.meshes, input.template_index())?;
     let learned = learn(&graph, &aligned, initial, params, stages, progress)?;
     let losses = vec![LossCurve {
         network: "graph_vae".to_owned(),

@@ -31,10 +31,11 @@ fn fit(
 ) -> Result<FitOutcome, ModelError> {
     let params =
         ModelType::parse_name("asmg")?.parse_params(&serde_json::to_value(params).unwrap())?;
+    let indices: Vec<usize> = template_index.into_iter().collect();
     let input = FitInput {
         training,
         holdout,
-        template_index,
+        template_indices: &indices,
         seed,
     };
     params.fit(&input, progress)

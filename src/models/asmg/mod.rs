@@ -25,6 +25,7 @@ pub mod laplacian;
 pub mod learn;
 pub mod model;
 mod monitor;
+pub mod multi_atlas;
 mod parallel;
 pub mod params;
 mod scores;
@@ -70,8 +71,8 @@ impl ModelFamily for Asmg {
         checked.get()
     }
 
-    fn template_mesh_id(checked: &CheckedAsmgParams) -> Option<&str> {
-        checked.get().atlas_mesh_id()
+    fn template_mesh_ids(checked: &CheckedAsmgParams) -> Vec<&str> {
+        checked.get().atlas_mesh_id().into_iter().collect()
     }
 
     fn fit(

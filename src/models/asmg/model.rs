@@ -282,6 +282,19 @@ impl AsmgModel {
         Mesh::new(vertices, self.atlas.faces.clone())
     }
 
+    /// The generator's reconstruction (encoder mean, decoder) of a normalised shape
+    /// (`[N_μ, 3]`, mm): a mesh with the atlas connectivity.
+    pub fn regenerate(&self, normalised: &[[f64; 3]]) -> Result<Mesh, ModelError> {
+        let nets = self.networks()?;
+        let flat = nets
+            .generator
+            .reconstruct(&[flatten_f32(normalised)])
+            .map_err(nn_error)?;
+        flat.first()
+            .map(|s| self.to_mesh(s))
+            .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))
+    }
+
     /// Decodes latent codes `[L]` to meshes.
     pub fn decode(&self, latents: &[Vec<f32>]) -> Result<Vec<Mesh>, ModelError> {
         let nets = self.networks()?;
@@ -337,15 +350,7 @@ impl ShapeModel for AsmgModel {
             self.params.max_vertices,
         )?;
         let normalised = self.normalise_aligned(&aligned)?;
-        let nets = self.networks()?;
-        let flat = nets
-            .generator
-            .reconstruct(&[flatten_f32(&normalised)])
-            .map_err(nn_error)?;
-        let mesh = flat
-            .first()
-            .map(|s| self.to_mesh(s))
-            .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))?;
+        let mesh = self.regenerate(&normalised)?;
         Ok(Reconstruction {
             mesh,
             atlas: 0,

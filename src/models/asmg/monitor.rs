@@ -8,7 +8,7 @@ use crate::nn::{Flow, Monitor};
 pub(crate) struct StageMonitor<'a> {
     stages: &'a Stages,
     progress: &'a mut dyn Progress,
-    network: &'static str,
+    network: String,
     epochs: u64,
     epochs_done: u64,
     last_loss: Option<f64>,
@@ -22,13 +22,13 @@ impl<'a> StageMonitor<'a> {
     pub(crate) fn new(
         stages: &'a Stages,
         progress: &'a mut dyn Progress,
-        network: &'static str,
+        network: &str,
         epochs: usize,
     ) -> Self {
         Self {
             stages,
             progress,
-            network,
+            network: network.to_owned(),
             epochs: epochs as u64,
             epochs_done: 0,
             last_loss: None,

@@ -36,6 +36,12 @@ pub fn atlas_distance(normalised: &[[f64; 3]], atlas: &[[f64; 3]]) -> Result<f64
 /// `w_km` from `d[k][m]` (`K × M`, every row the same length): each row sums to one. With
 /// all distances equal (no spread) every shape belongs to every cluster equally.
 pub fn soft_weights(d: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, ModelError> {
+    let alpha = sharpness(d)?;
+    d.iter().map(|row| weights_at(row, alpha)).collect()
+}
+
+/// `α = 1/std(d)` over the whole `K × M` matrix (1/mm²; 0 when every distance is equal).
+pub fn sharpness(d: &[Vec<f64>]) -> Result<f64, ModelError> {
     let m = d.first().map_or(0, Vec::len);
     if m == 0 || d.iter().any(|row| row.len() != m) {
         return Err(ModelError::InvalidInput(
@@ -50,19 +56,28 @@ pub fn soft_weights(d: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, ModelError> {
     let n = (d.len() * m) as f64;
     let mean = d.iter().flatten().sum::<f64>() / n;
     let variance = d.iter().flatten().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
-    let alpha = if variance > 0.0 {
+    Ok(if variance > 0.0 {
         1.0 / variance.sqrt()
     } else {
         0.0
-    };
-    Ok(d.iter()
-        .map(|row| {
-            let best = row.iter().copied().fold(f64::INFINITY, f64::min);
-            let e: Vec<f64> = row.iter().map(|v| (-alpha * (v - best)).exp()).collect();
-            let total: f64 = e.iter().sum();
-            e.iter().map(|v| v / total).collect()
-        })
-        .collect())
+    })
+}
+
+/// One shape's weights `softmax_m(−α·d_m)` from its distances to the `M` atlases (mm²),
+/// with the sharpness `α` of the training shapes (also how an unseen shape is assigned).
+pub fn weights_at(distances: &[f64], alpha: f64) -> Result<Vec<f64>, ModelError> {
+    if distances.is_empty() || distances.iter().any(|v| !v.is_finite()) || !alpha.is_finite() {
+        return Err(ModelError::Numerical(
+            "cluster distances must be finite and at least one".to_owned(),
+        ));
+    }
+    let best = distances.iter().copied().fold(f64::INFINITY, f64::min);
+    let e: Vec<f64> = distances
+        .iter()
+        .map(|v| (-alpha * (v - best)).exp())
+        .collect();
+    let total: f64 = e.iter().sum();
+    Ok(e.iter().map(|v| v / total).collect())
 }
 
 /// One damped update of `atlas` from the shapes normalised to it (`smoothed[k]`,

@@ -34,6 +34,8 @@ mod objective;
 pub mod params;
 mod refine;
 
+pub(crate) use refine::refine as refine_atlases;
+
 pub use params::{AtlasRAsmgParams, CheckedAtlasRAsmgParams, RefinementParams};
 
 use crate::models::asmg::fit::{
@@ -77,8 +79,8 @@ impl ModelFamily for AtlasRAsmg {
         checked.get()
     }
 
-    fn template_mesh_id(checked: &CheckedAtlasRAsmgParams) -> Option<&str> {
-        checked.get().asmg.atlas_mesh_id()
+    fn template_mesh_ids(checked: &CheckedAtlasRAsmgParams) -> Vec<&str> {
+        checked.get().asmg.atlas_mesh_id().into_iter().collect()
     }
 
     fn fit(
@@ -106,13 +108,15 @@ fn fit(
     drop(samples);
 
     stages.enter("atlas");
-    let initial = starting_atlas(asmg, &aligned.meshes, input.template_index)?;
+    let initial = starting_atlas(asmg, &aligned.meshes, input.template_index())?;
     let learned = learn(&graph, &aligned, initial, asmg, stages, progress)?;
 
     stages.enter("refinement");
+    let weights = vec![vec![1.0]; aligned.meshes.len()];
     let refined = refine::refine(
         graph,
-        learned.atlas,
+        vec![learned.atlas],
+        weights,
         &aligned,
         params,
         input.seed,
@@ -124,12 +128,20 @@ fn fit(
         per_epoch: graph_losses,
     }];
     losses.extend(refined.losses);
-    let correspondences = Correspondences {
-        graph: refined.graph,
-        atlas: refined.atlas,
-        smoothed: refined.smoothed,
-        aligned,
-        losses,
-    };
+    let correspondences =
+        Correspondences {
+            graph: refined.graph,
+            atlas: refined.atlases.into_iter().next().ok_or_else(|| {
+                ModelError::Numerical("the refinement returned no atlas".to_owned())
+            })?,
+            smoothed: refined
+                .memberships
+                .smoothed
+                .into_iter()
+                .next()
+                .unwrap_or_default(),
+            aligned,
+            losses,
+        };
     train_generator_and_build(correspondences, asmg, input.seed, stages, progress)
 }

@@ -15,7 +15,6 @@
 
 use super::losses::{chamfer_squared, laplacian_energy};
 use crate::geometry::kdtree::PointCloudIndex;
-use crate::mesh::adjacency::Adjacency;
 use crate::models::ModelError;
 use crate::models::asmg::{ScoreMoments, Smoother, Temperature};
 use crate::nn::{NnError, RefineObjective, RefineTerms};
@@ -34,14 +33,18 @@ impl Target {
     }
 }
 
-/// The refinement loss of every training shape on the current atlas.
-pub struct Refinement<'a> {
+/// One atlas as the refinement loss sees it.
+pub struct RefineAtlas<'a> {
     /// Smoothing on the atlas connectivity (exact solve).
     pub smoother: &'a Smoother,
-    /// The atlas connectivity (for the Laplacian term).
-    pub adjacency: &'a Adjacency,
     /// The current atlas positions, `[N_μ, 3]` mm.
-    pub atlas: &'a [[f64; 3]],
+    pub positions: &'a [[f64; 3]],
+}
+
+/// The refinement loss of every training shape on the current atlases.
+pub struct Refinement<'a> {
+    /// The atlases, in order.
+    pub atlases: Vec<RefineAtlas<'a>>,
     /// Each training shape's target.
     pub targets: &'a [Target],
     /// The attention temperature.
@@ -53,24 +56,30 @@ pub struct Refinement<'a> {
 }
 
 impl Refinement<'_> {
-    /// The weighted terms of shape `k` (mm²) and `∂L/∂h` (`[N_μ, 3]`, mm).
+    /// The weighted terms of shape `k` on atlas `m` (mm²) and `∂L/∂h` (`[N_μm, 3]`, mm).
     pub fn terms(
         &self,
         k: usize,
+        m: usize,
         h: &[[f64; 3]],
     ) -> Result<(RefineTerms, Vec<[f64; 3]>), ModelError> {
         let target = self.targets.get(k).ok_or_else(|| {
             ModelError::InvalidInput(format!("no refinement target for shape {k}"))
         })?;
-        let smoothed = self.smoother.smooth(h, self.atlas)?;
+        let atlas = self
+            .atlases
+            .get(m)
+            .ok_or_else(|| ModelError::InvalidInput(format!("no atlas {m} to refine on")))?;
+        let smoother = atlas.smoother;
+        let smoothed = smoother.smooth(h, atlas.positions)?;
         let (cd, g_cd) = chamfer_squared(&target.points, &target.index, &smoothed)?;
-        let (lap, g_lap) = laplacian_energy(self.adjacency, &smoothed)?;
+        let (lap, g_lap) = laplacian_energy(smoother.adjacency(), &smoothed)?;
         let g_smoothed: Vec<[f64; 3]> = g_cd
             .iter()
             .zip(&g_lap)
             .map(|(a, b)| std::array::from_fn(|d| self.w_cd * a[d] + self.w_lap * b[d]))
             .collect();
-        let gradient = self.smoother.pull_back(&g_smoothed)?;
+        let gradient = smoother.pull_back(&g_smoothed)?;
         Ok((
             RefineTerms {
                 chamfer: self.w_cd * cd,
@@ -91,8 +100,13 @@ impl RefineObjective for Refinement<'_> {
         self.temperature.lambda(&moments).unwrap_or(0.0)
     }
 
-    fn shape(&mut self, k: usize, h: &[[f64; 3]]) -> Result<(RefineTerms, Vec<[f64; 3]>), NnError> {
-        self.terms(k, h)
+    fn shape(
+        &mut self,
+        k: usize,
+        m: usize,
+        h: &[[f64; 3]],
+    ) -> Result<(RefineTerms, Vec<[f64; 3]>), NnError> {
+        self.terms(k, m, h)
             .map_err(|e| NnError::Objective(e.to_string()))
     }
 }

@@ -2,27 +2,26 @@
 //! generator's term), the atlas rebuilt after every epoch with eq. 5.12 (the same damped
 //! closed form as ASMG's), and the training shapes normalised on the final atlas.
 
-use super::objective::{Refinement, Target};
+use super::objective::{RefineAtlas, Refinement, Target};
 use super::params::AtlasRAsmgParams;
 use crate::mesh::Mesh;
-use crate::models::asmg::Embeddings;
-use crate::models::asmg::fit::{Aligned, learn_from};
-use crate::models::asmg::model::{embed_mesh, nn_error};
-use crate::models::asmg::{Smoother, normalise_shapes};
-use crate::models::progress::{Progress, Silent, Stages};
+use crate::models::asmg::fit::Aligned;
+use crate::models::asmg::model::nn_error;
+use crate::models::asmg::multi_atlas::{AtlasSet, Memberships};
+use crate::models::progress::{Progress, Stages};
 use crate::models::{LossCurve, ModelError};
 use crate::nn::{
     Flow, GraphRefiner, GraphSample, Monitor, RefineEpoch, RefineTraining, TrainedGraphVae,
 };
 
-/// What the refinement leaves for the generator.
+/// What the refinement leaves for the generators.
 pub(crate) struct Refined {
     /// Ψ after refinement.
     pub(crate) graph: TrainedGraphVae,
-    /// The atlas after the last update (mm, model frame).
-    pub(crate) atlas: Mesh,
-    /// The training shapes' smoothed normalised shapes on that atlas, `K` of `[N_μ, 3]` mm.
-    pub(crate) smoothed: Vec<Vec<[f64; 3]>>,
+    /// The atlases after the last update (mm, model frame).
+    pub(crate) atlases: Vec<Mesh>,
+    /// The training shapes on those atlases and their soft weights.
+    pub(crate) memberships: Memberships,
     /// Loss curves: the total and each term per epoch.
     pub(crate) losses: Vec<LossCurve>,
 }
@@ -66,28 +65,6 @@ impl Monitor for BatchCheck<'_> {
     }
 }
 
-/// The smoothed normalised shapes of every training mesh (embedded by `graph` as
-/// `embeddings`) on `atlas`.
-fn normalise_on(
-    graph: &TrainedGraphVae,
-    aligned: &Aligned,
-    embeddings: &[Embeddings],
-    atlas: &Mesh,
-    params: &AtlasRAsmgParams,
-    smoother: &Smoother,
-) -> Result<Vec<Vec<[f64; 3]>>, ModelError> {
-    let inputs = aligned.inputs(embeddings);
-    let atlas_embeddings = embed_mesh(graph, atlas, &params.asmg)?;
-    let normalised = normalise_shapes(
-        atlas,
-        &atlas_embeddings,
-        &inputs,
-        params.asmg.temperature(),
-        smoother,
-    )?;
-    Ok(normalised.smoothed)
-}
-
 fn curves(epochs: &[RefineEpoch]) -> Vec<LossCurve> {
     let curve = |network: &str, f: fn(&RefineEpoch) -> f64| LossCurve {
         network: network.to_owned(),
@@ -101,10 +78,15 @@ fn curves(epochs: &[RefineEpoch]) -> Vec<LossCurve> {
     ]
 }
 
-/// Refines Ψ and the atlas for `epochs_refine` epochs from `graph` and `atlas`.
+/// Refines Ψ and the atlases for `epochs_refine` epochs from `graph` and `atlases`; each
+/// shape's terms on atlas `m` count by its soft weight `w_km` (all 1 with one atlas), and the
+/// weights are recomputed with every atlas update. `weights[k][m]` are the soft weights
+/// of the training shapes on the starting atlases.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn refine(
     graph: TrainedGraphVae,
-    mut atlas: Mesh,
+    atlases: Vec<Mesh>,
+    weights: Vec<Vec<f64>>,
     aligned: &Aligned,
     params: &AtlasRAsmgParams,
     seed: u64,
@@ -119,7 +101,7 @@ pub(crate) fn refine(
         .iter()
         .map(|m| Target::new(m.vertices.clone()))
         .collect::<Result<Vec<_>, _>>()?;
-    let smoother = Smoother::new(&atlas, asmg.smoothing())?;
+    let mut set = AtlasSet::new(atlases, asmg)?;
     let training = RefineTraining {
         batch_size: asmg.batch_size,
         lr: asmg.lr,
@@ -128,18 +110,26 @@ pub(crate) fn refine(
         seed,
     };
     let mut refiner = GraphRefiner::new(&graph, training).map_err(nn_error)?;
-    // One damped atlas step per epoch (eq. 5.12).
-    let mut one_step = asmg.clone();
-    one_step.max_em_steps = 1;
+    let mut weights = weights;
+    let mut embeddings = Vec::new();
     let epochs = r.epochs_refine as u64;
     let mut done = Vec::with_capacity(r.epochs_refine);
-    let mut embeddings: Vec<Embeddings> = Vec::new();
     for epoch in 0..epochs {
-        let atlas_sample = GraphSample::from_mesh(&atlas, asmg.features.features());
+        let atlas_samples: Vec<GraphSample> = set
+            .atlases
+            .iter()
+            .map(|a| GraphSample::from_mesh(a, asmg.features.features()))
+            .collect();
         let mut objective = Refinement {
-            smoother: &smoother,
-            adjacency: smoother.adjacency(),
-            atlas: &atlas.vertices,
+            atlases: set
+                .atlases
+                .iter()
+                .zip(&set.smoothers)
+                .map(|(a, smoother)| RefineAtlas {
+                    smoother,
+                    positions: &a.vertices,
+                })
+                .collect(),
             targets: &targets,
             temperature: asmg.temperature(),
             w_cd: r.w_cd,
@@ -153,44 +143,48 @@ pub(crate) fn refine(
             last: done.last().copied(),
         };
         let Some(losses) = refiner
-            .epoch(&samples, &atlas_sample, &mut objective, &mut check)
+            .epoch(
+                &samples,
+                &atlas_samples,
+                &weights,
+                &mut objective,
+                &mut check,
+            )
             .map_err(nn_error)?
         else {
-            // Ψ moved since the last embeddings were taken.
-            embeddings.clear();
             break;
         };
+        // One damped update of every atlas per epoch (eq. 5.12; 5.14–5.15 with several).
+        // The next epoch weighs the shapes as the refined Ψ places them on these atlases
+        // (before their move: one damped step stale).
         let current = refiner.trained();
         embeddings = aligned.embeddings(&current, asmg)?;
-        let learned = learn_from(
-            &current,
-            aligned,
-            &embeddings,
-            atlas,
-            &one_step,
-            stages,
-            &mut Silent,
-        )?;
-        let moved = learned.steps.last().map_or(0.0, |s| s.movement_mm);
-        atlas = learned.atlas;
+        let memberships = set
+            .memberships(&current, &aligned.inputs(&embeddings), asmg)?
+            .0;
+        let moved = set.update(&memberships, asmg)?;
+        weights = memberships.weights;
         done.push(losses);
         let message = format!(
             "refinement epoch {} of {epochs}: {}; atlas moved {moved:.3} mm",
             epoch + 1,
-            terms(&losses)
+            terms(&losses),
         );
         stages.report(progress, epoch + 1, epochs, message, Some(losses.total()))?;
     }
     let graph = refiner.trained();
-    // The last finished epoch's embeddings are the refined Ψ's.
-    if embeddings.is_empty() {
+    if embeddings.is_empty() || done.len() < r.epochs_refine {
+        // Finished early: Ψ moved since the last embeddings were taken.
         embeddings = aligned.embeddings(&graph, asmg)?;
     }
-    let smoothed = normalise_on(&graph, aligned, &embeddings, &atlas, params, &smoother)?;
+    // The final shapes and weights, on the final atlases.
+    let memberships = set
+        .memberships(&graph, &aligned.inputs(&embeddings), asmg)?
+        .0;
     Ok(Refined {
         graph,
-        atlas,
-        smoothed,
+        atlases: set.atlases,
+        memberships,
         losses: curves(&done),
     })
 }

@@ -3,6 +3,7 @@
 use super::*;
 use crate::mesh::phantom::{self, Family};
 use crate::models::asmg::AsmgParams;
+use crate::models::asmg::Smoother;
 use crate::models::asmg::fit::align_training;
 use crate::models::asmg::model::simplified;
 use crate::models::progress::Silent;
@@ -48,9 +49,10 @@ fn one_refinement_step_lowers_the_refinement_loss() {
         .map(|m| Target::new(m.vertices.clone()).unwrap())
         .collect();
     let mut objective = Refinement {
-        smoother: &smoother,
-        adjacency: smoother.adjacency(),
-        atlas: &atlas.vertices,
+        atlases: vec![RefineAtlas {
+            smoother: &smoother,
+            positions: &atlas.vertices,
+        }],
         targets: &targets,
         temperature: params.asmg.temperature(),
         w_cd: 1.0,
@@ -65,13 +67,29 @@ fn one_refinement_step_lowers_the_refinement_loss() {
         seed: 3,
     };
     let mut refiner = GraphRefiner::new(&graph, refine_training).unwrap();
-    let atlas_sample = GraphSample::from_mesh(&atlas, params.asmg.features.features());
+    let atlases = [GraphSample::from_mesh(
+        &atlas,
+        params.asmg.features.features(),
+    )];
+    let weights = vec![vec![1.0]; samples.len()];
     let before = refiner
-        .epoch(&samples, &atlas_sample, &mut objective, &mut Unmonitored)
+        .epoch(
+            &samples,
+            &atlases,
+            &weights,
+            &mut objective,
+            &mut Unmonitored,
+        )
         .unwrap()
         .unwrap();
     let after = refiner
-        .epoch(&samples, &atlas_sample, &mut objective, &mut Unmonitored)
+        .epoch(
+            &samples,
+            &atlases,
+            &weights,
+            &mut objective,
+            &mut Unmonitored,
+        )
         .unwrap()
         .unwrap();
     let l_ref = |e: &RefineEpoch| e.chamfer + e.laplacian;

@@ -126,8 +126,8 @@ impl ModelFamily for Rsmp {
         checked.get()
     }
 
-    fn template_mesh_id(checked: &CheckedRsmpParams) -> Option<&str> {
-        checked.get().template.as_deref()
+    fn template_mesh_ids(checked: &CheckedRsmpParams) -> Vec<&str> {
+        checked.get().template.as_deref().into_iter().collect()
     }
 
     fn fit(
@@ -150,7 +150,7 @@ fn fit(
     let training = input.training;
     stages.enter("alignment");
     let t = input
-        .template_index
+        .template_index()
         .unwrap_or_else(|| alignment::median_resolution_index(training));
     let template = training
         .get(t)
@@ -202,6 +202,7 @@ fn fit(
         aligned_training: aligned,
         normalised: vec![shapes],
         losses: Vec::new(),
+        clusters: None,
     })
 }
 
@@ -223,7 +224,7 @@ mod tests {
         let input = FitInput {
             training,
             holdout,
-            template_index: None,
+            template_indices: &[],
             seed: 1,
         };
         let params = ModelType::parse_name("rsmp")
