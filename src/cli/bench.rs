@@ -72,6 +72,8 @@ struct BenchData {
     test: Vec<Mesh>,
     /// Exact volumes of fresh phantoms, ml.
     fresh_volumes: Vec<f64>,
+    /// Biomarkers of the fresh phantoms' meshes.
+    fresh_biomarkers: Vec<crate::eval::biomarkers::Biomarkers>,
     /// Sub-population of each training phantom (labelled families).
     labels: Option<Vec<String>>,
 }
@@ -115,6 +117,11 @@ pub fn run(args: &BenchArgs) -> CliResult {
         training: phantoms.iter().map(|p| p.mesh.clone()).collect(),
         test: test_phantoms.into_iter().map(|p| p.mesh).collect(),
         fresh_volumes: fresh.iter().map(|p| p.params.volume_ml).collect(),
+        fresh_biomarkers: fresh
+            .iter()
+            .map(|p| crate::eval::biomarkers::Biomarkers::from_mesh(&p.mesh))
+            .collect::<Result<_, _>>()
+            .map_err(|e| e.to_string())?,
     };
     drop(fresh);
     let exact: Vec<f64> = phantoms.iter().map(|p| p.params.volume_ml).collect();
@@ -222,6 +229,7 @@ fn bench_model(
             data.labels.as_deref(),
             &outcome.reference.values,
             &biomarkers,
+            &data.fresh_biomarkers,
         )
     });
     drop(members);

@@ -25,6 +25,9 @@ pub struct ClusterBench {
     /// Cohort members whose biomarkers are not all within the training range of any one
     /// sub-population (labelled families).
     pub mixing_members: Option<usize>,
+    /// The same count among fresh phantoms of the true population, and their number: how
+    /// often a real subject falls outside every range.
+    pub mixing_fresh: Option<(usize, usize)>,
 }
 
 impl ClusterBench {
@@ -35,6 +38,7 @@ impl ClusterBench {
         labels: Option<&[String]>,
         training_values: &[Vec<f64>],
         members: &[Biomarkers],
+        fresh: &[Biomarkers],
     ) -> Self {
         let count = clusters.priors.len();
         let won: Vec<usize> = clusters
@@ -52,6 +56,7 @@ impl ClusterBench {
             adjusted_rand_index: None,
             by_label: Vec::new(),
             mixing_members: None,
+            mixing_fresh: None,
         };
         let Some(labels) = labels.filter(|l| l.len() == won.len()) else {
             return bench;
@@ -99,12 +104,13 @@ impl ClusterBench {
                 .zip(range)
                 .all(|(v, (lo, hi))| v >= lo && v <= hi)
         };
-        bench.mixing_members = Some(
-            members
-                .iter()
+        let outside = |set: &[Biomarkers]| {
+            set.iter()
                 .filter(|m| !ranges.iter().any(|r| within(m, r)))
-                .count(),
-        );
+                .count()
+        };
+        bench.mixing_members = Some(outside(members));
+        bench.mixing_fresh = Some((outside(fresh), fresh.len()));
         bench
     }
 }
@@ -135,6 +141,9 @@ pub fn cluster_markdown(model: &str, c: &ClusterBench) -> String {
         out.push_str(&format!(
             "; cohort members outside every sub-population's biomarker ranges: {n}"
         ));
+    }
+    if let Some((n, of)) = c.mixing_fresh {
+        out.push_str(&format!(" (fresh phantoms of the population: {n} of {of})"));
     }
     out.push('\n');
     out
@@ -169,12 +178,13 @@ mod tests {
             extent_minor_mm: 1.0,
         };
         let members = [member(105.0), member(205.0), member(150.0)];
-        let c = ClusterBench::new(&clusters, Some(&labels), &values, &members);
+        let c = ClusterBench::new(&clusters, Some(&labels), &values, &members, &members[..2]);
         assert_eq!(c.sizes, [2, 2]);
         assert_eq!(c.adjusted_rand_index, Some(1.0));
         assert_eq!(c.by_label[0], ("bean".to_owned(), vec![2, 0]));
         assert_eq!(c.mixing_members, Some(1), "only the 150 ml member mixes");
-        let unlabelled = ClusterBench::new(&clusters, None, &values, &members);
+        assert_eq!(c.mixing_fresh, Some((0, 2)));
+        let unlabelled = ClusterBench::new(&clusters, None, &values, &members, &[]);
         assert_eq!(unlabelled.adjusted_rand_index, None);
     }
 }

@@ -30,10 +30,10 @@ pub fn model_page(m: &ModelPage<'_>) -> String {
     let mut body = String::new();
     let _ = write!(
         body,
-        "<h1>Model {} ({})</h1><p>Atlas of {} vertices; {} training and {} held-out meshes. Distances in mm, {} (tables also give point-to-surface distances).</p>",
+        "<h1>Model {} ({})</h1><p>{}; {} training and {} held-out meshes. Distances in mm, {} (tables also give point-to-surface distances).</p>",
         escape(m.model_id),
         escape(m.model_type),
-        s.atlas.vertex_count,
+        atlas_sentence(s),
         s.training_count,
         s.holdout_count,
         escape(&e.distance)
@@ -52,6 +52,15 @@ pub fn model_page(m: &ModelPage<'_>) -> String {
     }
     body.push_str(&timing_table(s));
     page(&format!("Model {}", m.model_id), &body)
+}
+
+/// "Atlas of N vertices", or "M atlases of N₀, N₁ … vertices".
+fn atlas_sentence(s: &ModelSummary) -> String {
+    if s.atlases.len() <= 1 {
+        return format!("Atlas of {} vertices", s.atlas.vertex_count);
+    }
+    let counts: Vec<String> = s.atlases.iter().map(|a| a.vertex_count.to_string()).collect();
+    format!("{} atlases of {} vertices", s.atlases.len(), counts.join(", "))
 }
 
 /// Each atlas (vertices, faces, Euler characteristic, prior) and, for a multi-atlas
