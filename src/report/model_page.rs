@@ -59,8 +59,16 @@ fn atlas_sentence(s: &ModelSummary) -> String {
     if s.atlases.len() <= 1 {
         return format!("Atlas of {} vertices", s.atlas.vertex_count);
     }
-    let counts: Vec<String> = s.atlases.iter().map(|a| a.vertex_count.to_string()).collect();
-    format!("{} atlases of {} vertices", s.atlases.len(), counts.join(", "))
+    let counts: Vec<String> = s
+        .atlases
+        .iter()
+        .map(|a| a.vertex_count.to_string())
+        .collect();
+    format!(
+        "{} atlases of {} vertices",
+        s.atlases.len(),
+        counts.join(", ")
+    )
 }
 
 /// Each atlas (vertices, faces, Euler characteristic, prior) and, for a multi-atlas
