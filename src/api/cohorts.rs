@@ -1,5 +1,6 @@
 //! Virtual cohorts: sample from a model with an acceptance report; download members.
 
+use std::collections::BTreeMap;
 use std::io::Write;
 
 use axum::extract::State;
@@ -15,10 +16,13 @@ use super::error::{ApiError, Problem};
 use super::extract::{Json, Path, Query};
 use super::meshes::{MeshFile, mesh_file_response};
 use super::models::{FormatQuery, load_model};
+use crate::eval::Biomarkers;
 use crate::geometry::pca::Sampling;
 use crate::mesh;
-use crate::models::ReferencePopulation;
-use crate::models::cohort::{CohortSpec, Criterion, Member, TrainingIndex, sample_cohort};
+use crate::models::cohort::{CohortSpec, Criterion, Member, TrainingIndex, sample_cohort_given};
+use crate::models::conditional::{Conditional, Target};
+use crate::models::{ModelError, ReferencePopulation};
+use crate::report::exports::{member_file_name, members_csv};
 use crate::store::cohorts::{CohortRecord, NewMember};
 
 /// Largest cohort.
@@ -68,6 +72,14 @@ pub struct CreateCohort {
     /// (nearer than the model's privacy threshold).
     #[serde(default)]
     pub exclude_near_copies: bool,
+    /// Targets by biomarker name (`volume_ml`, `area_cm2`, …): an interval
+    /// `{"min": 120, "max": 160}` (either end may be left out) that every member meets, or a
+    /// distribution `{"mean": 140, "sd": 10}` the members follow. Members are drawn from the
+    /// model's Gaussian conditioned on the targets; a target the model cannot reach is a
+    /// 422 `cohort.target_unreachable` naming the reachable range.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    #[schema(value_type = Object, example = json!({"volume_ml": {"min": 120, "max": 160}}))]
+    pub targets: BTreeMap<String, Target>,
 }
 
 /// A cohort with its acceptance report and members.
@@ -134,7 +146,54 @@ fn member_summary(m: &Member, training_ids: &[String]) -> serde_json::Value {
     })
 }
 
+fn check_target(name: &str, target: &Target) -> Result<(), ApiError> {
+    let field = format!("targets.{name}");
+    if !Biomarkers::NAMES.contains(&name) {
+        return Err(ApiError::invalid_field(
+            &field,
+            format!(
+                "'{name}' is not a biomarker; use one of {}",
+                Biomarkers::NAMES.join(", ")
+            ),
+        ));
+    }
+    let finite = |v: Option<f64>| v.is_none_or(f64::is_finite);
+    let problem = match *target {
+        Target::Interval {
+            min: None,
+            max: None,
+        } => {
+            Some("give min, max or both (an interval), or mean and sd (a distribution)".to_owned())
+        }
+        Target::Interval { min, max } if !finite(min) || !finite(max) => {
+            Some("min and max must be numbers".to_owned())
+        }
+        Target::Interval {
+            min: Some(lo),
+            max: Some(hi),
+        } if lo > hi => Some(format!("min {lo} is above max {hi}")),
+        Target::Distribution { mean, sd } if !(mean.is_finite() && sd > 0.0 && sd.is_finite()) => {
+            Some(format!(
+                "a distribution needs a finite mean and an sd above 0, got sd {sd}"
+            ))
+        }
+        _ => None,
+    };
+    problem.map_or(Ok(()), |p| {
+        Err(ApiError::invalid_field(&field, format!("{field}: {p}")))
+    })
+}
+
 fn check_request(body: &CreateCohort) -> Result<(), ApiError> {
+    for (name, target) in &body.targets {
+        check_target(name, target)?;
+    }
+    if !body.targets.is_empty() && body.sampling != Sampling::Gaussian {
+        return Err(ApiError::invalid_field(
+            "sampling",
+            "targets condition the model's Gaussian: leave sampling at gaussian",
+        ));
+    }
     if !(1..=MAX_COHORT_SIZE).contains(&body.size) {
         return Err(ApiError::invalid_field(
             "size",
@@ -147,6 +206,23 @@ fn check_request(body: &CreateCohort) -> Result<(), ApiError> {
     Ok(())
 }
 
+/// 422 for a cohort the model cannot draw; an unreachable target names its field and the
+/// range the model reaches.
+fn cohort_failed(e: ModelError) -> ApiError {
+    let problem = ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e.code(), e.to_string());
+    match e {
+        ModelError::TargetUnreachable {
+            biomarker,
+            low,
+            high,
+            ..
+        } => problem
+            .with("field", format!("targets.{biomarker}"))
+            .with("reachable", serde_json::json!({"min": low, "max": high})),
+        _ => problem,
+    }
+}
+
 /// Sample a virtual cohort from a model.
 #[utoipa::path(
     post, path = "/v1/models/{id}/cohorts", tag = "cohorts",
@@ -156,7 +232,7 @@ fn check_request(body: &CreateCohort) -> Result<(), ApiError> {
         (status = 201, description = "The cohort", body = CohortView, headers(("Location" = String, description = "URL of the cohort"))),
         (status = 404, description = "No such model", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "The model was stored in a format this release does not read (model.unsupported_version)", body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "Invalid field, or too few accepted draws", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Invalid field (`request.invalid_field`), too few accepted draws (`cohort.acceptance_unreachable`), or a target the model cannot reach (`cohort.target_unreachable`)", body = Problem, content_type = "application/problem+json"),
     )
 )]
 async fn create_cohort(
@@ -183,14 +259,20 @@ async fn create_cohort(
         exclude_near_copies: body.exclude_near_copies,
         max_draws: body.size.saturating_mul(DRAWS_PER_MEMBER),
     };
+    let targets: Vec<(String, Target)> = body.targets.clone().into_iter().collect();
     let (members, report) = tokio::task::spawn_blocking(move || {
         let shapes = stored.training.normalised_f64();
         let training = TrainingIndex::new(&shapes, &stored.training.privacy)?;
-        sample_cohort(stored.model.as_ref(), &reference, &training, &spec)
+        let model = stored.model.as_ref();
+        let conditional = match targets.is_empty() {
+            true => None,
+            false => Some(Conditional::new(model, &targets, spec.seed)?),
+        };
+        sample_cohort_given(model, &reference, &training, &spec, conditional.as_ref())
     })
     .await
     .map_err(|e| ApiError::internal(e.to_string()))?
-    .map_err(|e| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e.code(), e.to_string()))?;
+    .map_err(cohort_failed)?;
     let report = serde_json::to_value(&report).map_err(|e| ApiError::internal(e.to_string()))?;
     let request = serde_json::to_value(&body).map_err(|e| ApiError::internal(e.to_string()))?;
     let new_members = members
@@ -247,14 +329,24 @@ async fn download_member(
 ) -> Result<Response, ApiError> {
     let format = q.format()?;
     let mesh = state.store.cohort_member_mesh(&id, index).await?;
+    let cohort: CohortView = state.store.cohort(&id).await?.into();
+    let bytes = mesh::io::write_with_provenance(&mesh, format, &provenance(&cohort, index));
     Ok(mesh_file_response(
         &format!("member_{index:05}"),
         format,
-        mesh::io::write(&mesh, format),
+        bytes,
     ))
 }
 
-/// Zip of every member (in the chosen format) and `report.json`.
+/// The line kept inside member files (VTK's title line): where the member came from.
+fn provenance(cohort: &CohortView, index: i64) -> String {
+    format!(
+        "cohortforge member model={} cohort={} seed={} index={index}, coordinates in mm",
+        cohort.model_id, cohort.id, cohort.seed
+    )
+}
+
+/// Zip of every member (in the chosen format), `members.csv` and `report.json`.
 fn archive(
     cohort: &CohortView,
     meshes: &[mesh::Mesh],
@@ -269,9 +361,16 @@ fn archive(
         "model_id": cohort.model_id, "request": cohort.request,
         "report": cohort.report, "members": cohort.members,
     }))?)?;
+    zip.start_file("members.csv", options)?;
+    zip.write_all(members_csv(&cohort.members, format.extension()).as_bytes())?;
     for (i, m) in meshes.iter().enumerate() {
-        zip.start_file(format!("member_{i:05}.{}", format.extension()), options)?;
-        zip.write_all(&mesh::io::write(m, format))?;
+        zip.start_file(member_file_name(i, format.extension()), options)?;
+        let index = i64::try_from(i).unwrap_or(i64::MAX);
+        zip.write_all(&mesh::io::write_with_provenance(
+            m,
+            format,
+            &provenance(cohort, index),
+        ))?;
     }
     Ok(zip.finish()?.into_inner())
 }
@@ -281,7 +380,7 @@ fn archive(
     get, path = "/v1/cohorts/{id}/archive", tag = "cohorts",
     params(("id" = String, Path, description = "Cohort id"), FormatQuery),
     responses(
-        (status = 200, description = "Zip of member meshes and report.json", content((MeshFile = "application/zip"))),
+        (status = 200, description = "Zip of member meshes, members.csv and report.json", content((MeshFile = "application/zip"))),
         (status = 404, description = "No such cohort", body = Problem, content_type = "application/problem+json"),
     )
 )]

@@ -8,12 +8,14 @@ mod cohorts;
 mod datasets;
 pub mod error;
 mod events;
+mod exports;
 pub mod extract;
 mod jobs;
 mod meshes;
 mod models;
 mod ops;
 mod plots;
+mod renders;
 mod reports;
 pub mod upload;
 
@@ -126,7 +128,9 @@ fn api_routes() -> (OpenApiRouter<AppState>, OpenApiRouter<AppState>) {
         .merge(models::router())
         .merge(cohorts::router())
         .merge(reports::router())
-        .merge(plots::router());
+        .merge(plots::router())
+        .merge(renders::router())
+        .merge(exports::router());
     (v1, ops::router())
 }
 

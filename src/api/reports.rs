@@ -11,10 +11,16 @@ use utoipa_axum::routes;
 use super::AppState;
 use super::error::{ApiError, Problem};
 use super::extract::Path;
+use super::renders::{members_picture, model_picture};
 use crate::models::ModelSummary;
 use crate::models::cohort::CohortReport;
 use crate::models::reference::ReferencePopulation;
-use crate::report::{CohortPage, ModelPage, cohort_page, model_page};
+use crate::report::{CohortPage, ModelPage, Picture, cohort_page, model_page};
+
+/// Panel side of the pictures on the report pages, px.
+const PAGE_PANEL_PX: u32 = 200;
+/// Members pictured on a cohort page.
+const PAGE_MEMBERS: usize = 8;
 
 pub(super) fn router() -> OpenApiRouter<AppState> {
     OpenApiRouter::new()
@@ -61,7 +67,26 @@ async fn cohort_report(
     Path(id): Path<String>,
 ) -> Result<Html<String>, ApiError> {
     let cohort = CohortData::load(&state, &id).await?;
-    Ok(Html(cohort_page(&cohort.page())))
+    let size = cohort
+        .member_values
+        .values()
+        .map(Vec::len)
+        .max()
+        .unwrap_or(0);
+    let indices: Vec<usize> = (0..size.min(PAGE_MEMBERS)).collect();
+    let png = members_picture(&state, &id, &indices, None, PAGE_PANEL_PX).await?;
+    let pictures = [Picture {
+        name: "members".into(),
+        caption: format!(
+            "the first {} members, anterior view (renders/members)",
+            indices.len()
+        ),
+        png,
+    }];
+    Ok(Html(cohort_page(&CohortPage {
+        pictures: &pictures,
+        ..cohort.page()
+    })))
 }
 
 /// The model's report page: distributions of generalisation, specificity and matching
@@ -81,7 +106,26 @@ async fn model_report(
     Path(id): Path<String>,
 ) -> Result<Html<String>, ApiError> {
     let model = ModelData::load(&state, &id).await?;
-    Ok(Html(model_page(&model.page())))
+    let mut pictures = Vec::new();
+    let mut names = vec!["atlas", "modes"];
+    if !model.mesh_ids.1.is_empty() {
+        names.push("reconstruction_0");
+    }
+    for name in names {
+        match model_picture(&state, &id, name, None, PAGE_PANEL_PX).await {
+            Ok(png) => pictures.push(Picture {
+                name: name.to_owned(),
+                caption: format!("renders/{name}"),
+                png,
+            }),
+            Err(e) if e.status() == axum::http::StatusCode::NOT_FOUND => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(Html(model_page(&ModelPage {
+        pictures: &pictures,
+        ..model.page()
+    })))
 }
 
 /// What a cohort's page and its plots are drawn from.
@@ -118,6 +162,7 @@ impl CohortData {
             report: &self.report,
             member_values: &self.member_values,
             reference: &self.reference,
+            pictures: &[],
         }
     }
 }
@@ -154,6 +199,7 @@ impl ModelData {
             summary: &self.summary,
             training_mesh_ids: &self.mesh_ids.0,
             holdout_mesh_ids: &self.mesh_ids.1,
+            pictures: &[],
         }
     }
 }

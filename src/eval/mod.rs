@@ -8,6 +8,7 @@ mod error;
 pub mod fidelity;
 pub mod kde;
 pub mod metrics;
+pub mod normal;
 pub mod privacy;
 pub mod stats;
 pub mod surface_metrics;

@@ -8,6 +8,8 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::clusters::{ClusterReport, cluster_reports};
+use super::conditional::Conditional;
+pub use super::targets_report::TargetsReport;
 use super::{ModelError, ReferencePopulation, ShapeModel};
 use crate::eval::Biomarkers;
 use crate::eval::acceptance::{Flags, Intervals, Rates, ReferenceStats, joint_acceptance_rates};
@@ -121,6 +123,9 @@ pub struct CohortReport {
     /// members; one row for single-atlas models.
     #[serde(default)]
     pub clusters: Vec<ClusterReport>,
+    /// The targets of a conditional cohort and how well its members meet them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub targets: Option<TargetsReport>,
 }
 
 /// Privacy part of a cohort report.
@@ -180,9 +185,14 @@ fn evaluate_draw<M: ShapeModel + ?Sized>(
     intervals: &[Intervals],
     training: &TrainingIndex<'_>,
     spec: &CohortSpec,
+    conditional: Option<&Conditional>,
     draw: u64,
 ) -> Result<Evaluated, ModelError> {
-    let sampled = model.sample(&mut draw_rng(spec.seed, draw), spec.sampling)?;
+    let mut rng = draw_rng(spec.seed, draw);
+    let sampled = match conditional {
+        Some(c) => c.draw(model, &mut rng)?,
+        None => model.sample(&mut rng, spec.sampling)?,
+    };
     let (shapes, privacy) = training.of_cluster(sampled.cluster)?;
     let biomarkers = Biomarkers::from_mesh(&sampled.mesh)?;
     let accepted = joint_flags(intervals, &biomarkers);
@@ -248,8 +258,21 @@ pub fn sample_cohort<M: ShapeModel + Sync + ?Sized>(
     training: &TrainingIndex<'_>,
     spec: &CohortSpec,
 ) -> Result<(Vec<Member>, CohortReport), ModelError> {
+    sample_cohort_given(model, reference, training, spec, None)
+}
+
+/// Draws a cohort whose members meet the targets of `conditional` (drawn from the model's
+/// conditional Gaussian; members outside an interval target are drawn again), or a plain
+/// cohort without it.
+pub fn sample_cohort_given<M: ShapeModel + Sync + ?Sized>(
+    model: &M,
+    reference: &ReferencePopulation,
+    training: &TrainingIndex<'_>,
+    spec: &CohortSpec,
+    conditional: Option<&Conditional>,
+) -> Result<(Vec<Member>, CohortReport), ModelError> {
     let intervals = reference.intervals();
-    let filtering = spec.only_accepted || spec.exclude_near_copies;
+    let filtering = spec.only_accepted || spec.exclude_near_copies || conditional.is_some();
     let limit = if filtering {
         spec.max_draws.max(spec.size)
     } else {
@@ -261,12 +284,15 @@ pub fn sample_cohort<M: ShapeModel + Sync + ?Sized>(
         let wanted = (spec.size - members.len()) as u64;
         let batch: Vec<u64> = (next..limit.min(next + wanted.max(DRAW_BATCH))).collect();
         let evaluated = parallel_map(&batch, |&d| {
-            evaluate_draw(model, &intervals, training, spec, d)
+            evaluate_draw(model, &intervals, training, spec, conditional, d)
         });
         for (draw, result) in batch.iter().zip(evaluated) {
             next = draw + 1;
             let e = result?;
             all_draws.push(e.biomarkers);
+            if conditional.is_some_and(|c| !c.meets(&e.biomarkers)) {
+                continue;
+            }
             if spec.exclude_near_copies && e.near_copy {
                 replaced += 1;
                 continue;
@@ -290,6 +316,19 @@ pub fn sample_cohort<M: ShapeModel + Sync + ?Sized>(
             }
         }
     }
+    if let Some(c) = conditional
+        && members.len() < spec.size
+        && all_draws.iter().filter(|b| c.meets(b)).count() < spec.size
+    {
+        return Err(c.unreachable(
+            0,
+            &format!(
+                "only {} of {next} draws met the targets, short of the {} asked for",
+                all_draws.iter().filter(|b| c.meets(b)).count(),
+                spec.size
+            ),
+        ));
+    }
     if members.len() < spec.size {
         return Err(ModelError::AcceptanceUnreachable {
             size: spec.size,
@@ -309,6 +348,7 @@ pub fn sample_cohort<M: ShapeModel + Sync + ?Sized>(
     };
     let mut report = report(reference, &intervals, &members, &all_draws, privacy)?;
     report.clusters = cluster_reports(reference, &intervals, &members, model.atlases().len())?;
+    report.targets = conditional.map(|c| TargetsReport::new(c, &members, all_draws.len()));
     Ok((members, report))
 }
 
@@ -348,6 +388,7 @@ fn report(
         draw_acceptance: joint_acceptance_rates(intervals, &draw_columns)?,
         privacy,
         clusters: Vec::new(),
+        targets: None,
     })
 }
 

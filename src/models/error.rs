@@ -42,6 +42,23 @@ pub enum ModelError {
         /// The criterion.
         criterion: &'static str,
     },
+    /// A cohort target lies outside what the model's draws reach, or too few draws met it.
+    #[error(
+        "targets.{biomarker}: {detail}; this model's draws reach {low:.2}–{high:.2} {unit} \
+         (seen in its own pilot draws): ask for a target inside that range"
+    )]
+    TargetUnreachable {
+        /// The biomarker's JSON name.
+        biomarker: String,
+        /// What failed.
+        detail: String,
+        /// Lowest value the model reaches.
+        low: f64,
+        /// Highest value the model reaches.
+        high: f64,
+        /// Unit of the biomarker.
+        unit: &'static str,
+    },
     /// Geometry failed (registration, PCA, distances).
     #[error(transparent)]
     Geometry(#[from] GeometryError),
@@ -90,6 +107,7 @@ impl ModelError {
             Self::InvalidParams { .. } => "model.invalid_params",
             Self::TooFewMeshes { .. } => "model.too_few_meshes",
             Self::AcceptanceUnreachable { .. } => "cohort.acceptance_unreachable",
+            Self::TargetUnreachable { .. } => "cohort.target_unreachable",
             Self::Geometry(e) => e.code(),
             Self::Eval(e) => e.code(),
             Self::Cancelled(_) => "job.cancelled",

@@ -13,15 +13,19 @@ pub mod asmg;
 pub mod atlas_r_asmg;
 pub mod clusters;
 pub mod cohort;
+pub mod conditional;
 mod error;
 pub mod evaluation;
 pub mod fitting;
+pub mod latent_effects;
 pub mod matlas_r_asmg;
 pub mod progress;
 pub mod reference;
 pub mod registry;
 pub mod rsmp;
+pub mod shape_modes;
 pub mod stored;
+mod targets_report;
 pub mod workers;
 
 use rand_chacha::ChaCha8Rng;
@@ -61,6 +65,19 @@ pub struct Draw {
     pub cluster: usize,
 }
 
+/// How a model's draws arise when each is a standard-normal vector `ε` mapped to a shape by
+/// the generator of one cluster (PCA coefficients `bᵢ = √λᵢ·εᵢ`, or the latent Gaussian's
+/// `z = centre + mixing·ε`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StandardLatent {
+    /// `π_m`: the probability that a draw comes from cluster `m` (summing to one).
+    pub priors: Vec<f64>,
+    /// Length `L_m` of the standard-normal vector of each cluster.
+    pub dimensions: Vec<usize>,
+    /// The coordinates are PCA modes in decreasing variance (otherwise latent codes).
+    pub principal_modes: bool,
+}
+
 /// What every fitted model can do.
 pub trait ShapeModel {
     /// The atlases (templates) in the model frame, mm: one or more, each with its own
@@ -70,6 +87,26 @@ pub trait ShapeModel {
     fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Draw, ModelError>;
     /// Reconstructs an unseen mesh through the model.
     fn reconstruct(&self, mesh: &Mesh) -> Result<Reconstruction, ModelError>;
+    /// Variances `λᵢ` of the kept PCA modes in mm², largest first (PCA models only).
+    fn principal_variances_mm2(&self) -> Option<Vec<f64>> {
+        None
+    }
+    /// The standard-normal draws behind [`sample`](Self::sample), when draws are made so.
+    fn standard_latent(&self) -> Option<StandardLatent> {
+        None
+    }
+    /// The shapes of standard-normal vectors `[L_m]` through cluster `cluster`'s generator
+    /// (mm, that atlas's connectivity); unclipped.
+    fn decode_standard(
+        &self,
+        cluster: usize,
+        standard: &[Vec<f64>],
+    ) -> Result<Vec<Mesh>, ModelError> {
+        let _ = (cluster, standard);
+        Err(ModelError::InvalidInput(
+            "this model does not draw from a standard normal".to_owned(),
+        ))
+    }
 }
 
 /// The training shapes in the model frame, kept with a model for the privacy guard and for
@@ -84,6 +121,17 @@ pub struct TrainingShapes {
     /// Near-copy threshold of each atlas, from the nearest-neighbour distances of the
     /// training shapes normalised to it.
     pub privacy: Vec<PrivacyThreshold>,
+}
+
+/// `Ok` when `cluster` is one of `count` clusters.
+pub(crate) fn check_cluster(cluster: usize, count: usize) -> Result<(), ModelError> {
+    if cluster < count {
+        Ok(())
+    } else {
+        Err(ModelError::InvalidInput(format!(
+            "cluster {cluster} of a model with {count} clusters"
+        )))
+    }
 }
 
 fn to_f32(shapes: &[Vec<[f64; 3]>]) -> Vec<Vec<[f32; 3]>> {

@@ -6,10 +6,11 @@ use std::fmt::Write;
 
 use super::cohort_plots::biomarker_violin;
 use super::plot::figure;
-use super::{escape, mean_sd, page};
+use super::{Picture, escape, mean_sd, page, pictures_section};
 use crate::eval::acceptance::Rates;
 use crate::models::clusters::ClusterReport;
 use crate::models::cohort::CohortReport;
+use crate::models::conditional::Target;
 use crate::models::reference::ReferencePopulation;
 
 /// What the cohort page shows.
@@ -24,6 +25,8 @@ pub struct CohortPage<'a> {
     pub member_values: &'a BTreeMap<String, Vec<f64>>,
     /// The model's training population.
     pub reference: &'a ReferencePopulation,
+    /// Rendered members.
+    pub pictures: &'a [Picture],
 }
 
 /// The page as HTML; one plot per biomarker of the report (see [`super::cohort_plot`]).
@@ -37,6 +40,7 @@ pub fn cohort_page(c: &CohortPage<'_>) -> String {
         escape(c.model_id),
         c.report.draws
     );
+    body.push_str(&targets_table(c.report));
     body.push_str(&acceptance_table(c.report));
     let p = &c.report.privacy;
     let _ = write!(
@@ -55,6 +59,7 @@ pub fn cohort_page(c: &CohortPage<'_>) -> String {
         body.push_str(&figure(name, &biomarker_violin(c, name, b)));
     }
     body.push_str("</div>");
+    body.push_str(&pictures_section(c.pictures));
     body.push_str(&cluster_table(c.report));
     page(&format!("Cohort {}", c.cohort_id), &body)
 }
@@ -137,4 +142,39 @@ fn acceptance_table(report: &CohortReport) -> String {
         a.range, a.mode, a.mean
     );
     t
+}
+
+/// The targets of a conditional cohort and how its members meet them.
+fn targets_table(report: &CohortReport) -> String {
+    let Some(t) = &report.targets else {
+        return String::new();
+    };
+    let mut out = format!(
+        "<h2>Targets</h2><p>Drawn from the {}; {:.2} draws per member.</p><table><tr><th>biomarker</th><th>target</th><th>reachable</th><th>members inside</th><th>members mean ± sd</th></tr>",
+        escape(&t.method),
+        t.draws_per_member
+    );
+    for r in &t.targets {
+        let target = match r.target {
+            Target::Interval { min, max } => format!(
+                "[{}, {}]",
+                min.map_or("−∞".into(), |v| format!("{v}")),
+                max.map_or("∞".into(), |v| format!("{v}"))
+            ),
+            Target::Distribution { mean, sd } => format!("N({mean}, {sd}²)"),
+        };
+        let _ = write!(
+            out,
+            "<tr><td>{} ({})</td><td>{}</td><td>{:.2}–{:.2}</td><td>{:.1}%</td><td>{}</td></tr>",
+            escape(&r.biomarker),
+            escape(&r.unit),
+            escape(&target),
+            r.reachable[0],
+            r.reachable[1],
+            100.0 * r.inside,
+            mean_sd(r.mean, r.sd)
+        );
+    }
+    out.push_str("</table><p class=\"note\">Inside: within the interval, or within mean ± 2 sd of a distribution target.</p>");
+    out
 }

@@ -5,7 +5,7 @@ use std::fmt::Write;
 
 use super::model_plots::{CLOSED_FORM, model_plot, model_plot_names};
 use super::plot::figure;
-use super::{escape, mean_sd, page};
+use super::{Picture, escape, mean_sd, page, pictures_section};
 use crate::eval::metrics::DistanceSummary;
 use crate::models::ModelSummary;
 
@@ -21,6 +21,8 @@ pub struct ModelPage<'a> {
     pub training_mesh_ids: &'a [String],
     /// Held-out mesh ids, in fit order.
     pub holdout_mesh_ids: &'a [String],
+    /// Rendered shapes (atlases, modes, a reconstruction).
+    pub pictures: &'a [Picture],
 }
 
 /// The page as HTML; its plots are those of [`model_plot_names`].
@@ -40,6 +42,7 @@ pub fn model_page(m: &ModelPage<'_>) -> String {
     );
     body.push_str(&metric_table(m));
     body.push_str(&clusters_section(m));
+    body.push_str(&pictures_section(m.pictures));
     body.push_str("<h2>Distributions</h2><div class=\"plots\">");
     for name in model_plot_names(m) {
         if let Ok(svg) = model_plot(m, &name) {

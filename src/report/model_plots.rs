@@ -216,6 +216,7 @@ mod tests {
             summary,
             training_mesh_ids: &[],
             holdout_mesh_ids: &[],
+            pictures: &[],
         }
     }
 

@@ -52,17 +52,30 @@ static FONTS: LazyLock<Arc<Database>> = LazyLock::new(|| {
     Arc::new(db)
 });
 
+fn options() -> Options<'static> {
+    Options {
+        font_family: FONT_FAMILY.to_owned(),
+        fontdb: Arc::clone(&FONTS),
+        ..Options::default()
+    }
+}
+
+/// `svg` drawn over `pixmap` at 1 px per user unit (text with the embedded font).
+///
+/// # Errors
+/// [`PngError::Svg`] when the SVG does not parse.
+pub fn draw_svg_over(svg: &str, pixmap: &mut Pixmap) -> Result<(), PngError> {
+    let tree = Tree::from_str(svg, &options())?;
+    resvg::render(&tree, Transform::identity(), &mut pixmap.as_mut());
+    Ok(())
+}
+
 /// `svg` rasterised at its own width and height (1 px per user unit) on a white ground.
 ///
 /// # Errors
 /// [`PngError`] when the SVG does not parse, has an unusable size, or cannot be encoded.
 pub fn svg_to_png(svg: &str) -> Result<Vec<u8>, PngError> {
-    let options = Options {
-        font_family: FONT_FAMILY.to_owned(),
-        fontdb: Arc::clone(&FONTS),
-        ..Options::default()
-    };
-    let tree = Tree::from_str(svg, &options)?;
+    let tree = Tree::from_str(svg, &options())?;
     let size = tree.size().to_int_size();
     let (width, height) = (size.width(), size.height());
     let size_error = PngError::Size { width, height };

@@ -16,11 +16,11 @@ use tokio_util::sync::CancellationToken;
 use crate::support::{TestServer, expect_json, expect_problem};
 
 /// Cheaper registration settings for tests (the defaults are tuned for quality).
-fn quick_params() -> Value {
+pub fn quick_params() -> Value {
     json!({"cpd_max_iterations": 40, "variance_target": 0.95})
 }
 
-async fn upload_phantoms(s: &TestServer, family: Family, count: usize, seed: u64) -> String {
+pub async fn upload_phantoms(s: &TestServer, family: Family, count: usize, seed: u64) -> String {
     let dataset = s.dataset("phantoms", family.as_str()).await;
     let mut form = Form::new();
     for p in phantom::generate(family, count, seed) {
@@ -47,7 +47,7 @@ async fn submit(s: &TestServer, body: Value) -> reqwest::Response {
         .unwrap()
 }
 
-async fn wait_for(s: &TestServer, job: &str, timeout: Duration) -> Value {
+pub async fn wait_for(s: &TestServer, job: &str, timeout: Duration) -> Value {
     let started = std::time::Instant::now();
     loop {
         let body = expect_json(

@@ -13,5 +13,6 @@ mod matlas_r_asmg;
 mod meshes;
 mod nifti;
 mod openapi;
+mod pictures_exports;
 mod reports;
 mod support;

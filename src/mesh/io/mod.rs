@@ -71,5 +71,15 @@ pub fn write(mesh: &Mesh, format: Format) -> Vec<u8> {
     }
 }
 
+/// As [`write`], with `provenance` (one line, e.g. the model, seed and member index) kept
+/// inside the file where the format has a place for it: the title line of VTK. Other
+/// formats are written as by [`write`].
+pub fn write_with_provenance(mesh: &Mesh, format: Format, provenance: &str) -> Vec<u8> {
+    match format {
+        Format::Vtk => vtk::write_titled(mesh, provenance),
+        other => write(mesh, other),
+    }
+}
+
 #[cfg(test)]
 mod tests;

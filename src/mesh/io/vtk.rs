@@ -307,13 +307,31 @@ fn truncated(t: &Tokens, section: &str) -> MeshError {
     )
 }
 
+/// The title line of files written without one of their own.
+const DEFAULT_TITLE: &str = "cohortforge surface mesh, coordinates in mm";
+/// Longest title line the legacy format allows.
+const MAX_TITLE: usize = 255;
+
 /// Legacy ASCII VTK 4.2 polydata with `double` points and classic `POLYGONS`.
 pub(super) fn write(mesh: &Mesh) -> Vec<u8> {
+    write_titled(mesh, DEFAULT_TITLE)
+}
+
+/// As [`write`], with `title` (one line, at most 255 bytes; longer is cut, line breaks
+/// become spaces) as the file's title line.
+pub(super) fn write_titled(mesh: &Mesh, title: &str) -> Vec<u8> {
+    let mut title: String = title
+        .chars()
+        .map(|c| if c.is_control() { ' ' } else { c })
+        .collect();
+    while title.len() > MAX_TITLE {
+        title.pop();
+    }
     let mut out =
         Vec::with_capacity(BYTES_PER_LINE_HINT * (mesh.vertices.len() + mesh.faces.len()));
     let _ = write!(
         out,
-        "# vtk DataFile Version 4.2\ncohortforge surface mesh, coordinates in mm\nASCII\n\
+        "# vtk DataFile Version 4.2\n{title}\nASCII\n\
          DATASET POLYDATA\nPOINTS {} double\n",
         mesh.vertices.len()
     );

@@ -23,7 +23,7 @@ use crate::mesh::Mesh;
 use crate::mesh::simplify::simplify;
 use crate::models::alignment::{self, AlignmentParams};
 use crate::models::stored::{FittedModel, encode_named};
-use crate::models::{Draw, ModelError, Reconstruction, ShapeModel};
+use crate::models::{Draw, ModelError, Reconstruction, ShapeModel, StandardLatent, check_cluster};
 use crate::nn::{
     BetaVaeConfig, GraphSample, GraphVaeConfig, LatentPrior, NnError, TrainedBetaVae,
     TrainedGraphVae,
@@ -295,6 +295,15 @@ impl AsmgModel {
             .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))
     }
 
+    /// The latent code of a standard-normal vector `ε` (`[L]`): through the latent
+    /// Gaussian fitted to the training codes, or `ε` itself for models without one.
+    fn code_of(&self, standard: Vec<f32>) -> Vec<f32> {
+        match &self.latent_prior {
+            Some(prior) if prior.centre.len() == standard.len() => prior.code(&standard),
+            _ => standard,
+        }
+    }
+
     /// Decodes latent codes `[L]` to meshes.
     pub fn decode(&self, latents: &[Vec<f32>]) -> Result<Vec<Mesh>, ModelError> {
         let nets = self.networks()?;
@@ -331,15 +340,32 @@ impl ShapeModel for AsmgModel {
         let standard: Vec<f32> = (0..self.sizes.vae_latent)
             .map(|_| latent_coordinate(rng, sampling))
             .collect();
-        let z = match &self.latent_prior {
-            Some(prior) if prior.centre.len() == standard.len() => prior.code(&standard),
-            _ => standard,
-        };
         let mesh = self
-            .decode(&[z])?
+            .decode(&[self.code_of(standard)])?
             .pop()
             .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))?;
         Ok(Draw { mesh, cluster: 0 })
+    }
+
+    fn standard_latent(&self) -> Option<StandardLatent> {
+        Some(StandardLatent {
+            priors: vec![1.0],
+            dimensions: vec![self.sizes.vae_latent],
+            principal_modes: false,
+        })
+    }
+
+    fn decode_standard(
+        &self,
+        cluster: usize,
+        standard: &[Vec<f64>],
+    ) -> Result<Vec<Mesh>, ModelError> {
+        check_cluster(cluster, 1)?;
+        let codes: Vec<Vec<f32>> = standard
+            .iter()
+            .map(|e| self.code_of(e.iter().map(|v| *v as f32).collect()))
+            .collect();
+        self.decode(&codes)
     }
 
     fn reconstruct(&self, mesh: &Mesh) -> Result<Reconstruction, ModelError> {

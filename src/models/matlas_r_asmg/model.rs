@@ -15,7 +15,7 @@ use crate::models::asmg::model::align;
 use crate::models::asmg::soft_clusters::{atlas_distance, weights_at};
 use crate::models::clusters::winning_cluster;
 use crate::models::stored::{FittedModel, encode_named};
-use crate::models::{Draw, ModelError, Reconstruction, ShapeModel};
+use crate::models::{Draw, ModelError, Reconstruction, ShapeModel, StandardLatent, check_cluster};
 
 /// A fitted multi-atlas model.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -139,6 +139,28 @@ impl ShapeModel for MatlasModel {
             mesh: draw.mesh,
             cluster,
         })
+    }
+
+    fn standard_latent(&self) -> Option<StandardLatent> {
+        let parts: Vec<StandardLatent> = self
+            .parts
+            .iter()
+            .map(ShapeModel::standard_latent)
+            .collect::<Option<_>>()?;
+        Some(StandardLatent {
+            priors: self.priors.clone(),
+            dimensions: parts.iter().flat_map(|p| p.dimensions.clone()).collect(),
+            principal_modes: false,
+        })
+    }
+
+    fn decode_standard(
+        &self,
+        cluster: usize,
+        standard: &[Vec<f64>],
+    ) -> Result<Vec<Mesh>, ModelError> {
+        check_cluster(cluster, self.parts.len())?;
+        self.parts[cluster].decode_standard(0, standard)
     }
 
     /// Through the generator of the cluster of largest weight.

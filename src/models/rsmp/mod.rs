@@ -6,10 +6,14 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::alignment::{self, AlignmentParams, Normalisation};
+use super::check_cluster;
 use super::progress::{Progress, Stages};
 use super::stored::{FittedModel, encode_named};
 use super::workers::map_items;
-use super::{Draw, FitInput, FittedParts, ModelError, ModelFamily, Reconstruction, ShapeModel};
+use super::{
+    Draw, FitInput, FittedParts, ModelError, ModelFamily, Reconstruction, ShapeModel,
+    StandardLatent,
+};
 use crate::geometry::correspondence::{flatten, normalised_shape, unflatten};
 use crate::geometry::pca::{PcaModel, PcaParams, Sampling};
 use crate::mesh::Mesh;
@@ -92,6 +96,40 @@ impl ShapeModel for RsmpModel {
             normalised,
             aligned_input,
         })
+    }
+
+    /// The PCA runs on coordinates divided by `scale_mm`: λ in mm² is `λ·scale_mm²`.
+    fn principal_variances_mm2(&self) -> Option<Vec<f64>> {
+        let s2 = self.normalisation.scale_mm.powi(2);
+        Some(self.pca.variances.iter().map(|l| l * s2).collect())
+    }
+
+    fn standard_latent(&self) -> Option<StandardLatent> {
+        Some(StandardLatent {
+            priors: vec![1.0],
+            dimensions: vec![self.pca.n_modes()],
+            principal_modes: true,
+        })
+    }
+
+    /// `bᵢ = √λᵢ·εᵢ`, then the shape `mean + U·b`.
+    fn decode_standard(
+        &self,
+        cluster: usize,
+        standard: &[Vec<f64>],
+    ) -> Result<Vec<Mesh>, ModelError> {
+        check_cluster(cluster, 1)?;
+        standard
+            .iter()
+            .map(|e| {
+                let b: Vec<f64> = e
+                    .iter()
+                    .zip(&self.pca.variances)
+                    .map(|(e, l)| e * l.sqrt())
+                    .collect();
+                Ok(self.to_mesh(&self.pca.reconstruct(&b)?))
+            })
+            .collect()
     }
 }
 

@@ -193,3 +193,26 @@ fn vtk_field_data_is_skipped() {
     assert_eq!(m.faces.len(), 4);
     assert_eq!(m.vertices[1], [1.0, 0.0, 0.0]);
 }
+
+#[test]
+fn vtk_keeps_a_provenance_title_and_reads_back() {
+    let mesh = Mesh::new(
+        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        vec![[0, 1, 2]],
+    );
+    let bytes = write_with_provenance(&mesh, Format::Vtk, "cohortforge model=m1 seed=7\nindex=3");
+    let text = String::from_utf8(bytes.clone()).unwrap();
+    assert_eq!(
+        text.lines().nth(1),
+        Some("cohortforge model=m1 seed=7 index=3")
+    );
+    let back = parse(&bytes, Format::Vtk);
+    assert_eq!(back.vertices, mesh.vertices);
+    let long = "x".repeat(400);
+    let text = String::from_utf8(write_with_provenance(&mesh, Format::Vtk, &long)).unwrap();
+    assert_eq!(text.lines().nth(1).map(str::len), Some(255));
+    assert_eq!(
+        write_with_provenance(&mesh, Format::Obj, "p"),
+        write(&mesh, Format::Obj)
+    );
+}
