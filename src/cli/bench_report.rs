@@ -110,6 +110,34 @@ pub struct CohortBench {
     pub memory: Option<StepMemory>,
     /// Acceptance (criterion `mean` for the flags) and privacy report.
     pub report: CohortReport,
+    /// Time to draw the first member's picture.
+    pub render: Option<RenderBench>,
+    /// A cohort of the same size conditioned on a volume interval.
+    pub conditional: ConditionalBench,
+}
+
+/// Time of a picture.
+#[derive(Debug, Serialize)]
+pub struct RenderBench {
+    /// Vertices of the mesh drawn.
+    pub vertices: usize,
+    /// Milliseconds per view (one 240 px panel with its labels, PNG encoded).
+    pub ms_per_view: f64,
+}
+
+/// A conditional cohort (volume in [`BENCH_VOLUME_TARGET`](super::bench::BENCH_VOLUME_TARGET)).
+#[derive(Debug, Serialize)]
+pub struct ConditionalBench {
+    /// Wall-clock seconds, pilot draws included.
+    pub seconds: f64,
+    /// Share of members inside the interval.
+    pub inside: f64,
+    /// Draws per member kept.
+    pub draws_per_member: f64,
+    /// Mean area (cm²) of the plain cohort and of the conditional one.
+    pub area_cm2: Option<(f64, f64)>,
+    /// Why it failed (e.g. the target is out of reach).
+    pub error: Option<String>,
 }
 
 /// Synthetic volumes (ml) against the generator's.
@@ -222,6 +250,38 @@ fn cohort_table(report: &BenchReport) -> String {
         row(
             "memory growth, MiB",
             models.iter().map(|m| memory_cell(m.cohort.memory)),
+        ),
+        row(
+            "picture, ms per view (vertices)",
+            models.iter().map(|m| {
+                m.cohort.render.as_ref().map_or(MISSING.to_owned(), |r| {
+                    format!("{:.1} ({})", r.ms_per_view, r.vertices)
+                })
+            }),
+        ),
+        row(
+            "volume in [120, 160] ml: inside / draws per member",
+            models.iter().map(|m| {
+                let c = &m.cohort.conditional;
+                match &c.error {
+                    Some(e) => format!("unreachable: {}", e.split("; ").nth(1).unwrap_or(e)),
+                    None => format!(
+                        "{:.1}% / {:.2} ({:.1} s)",
+                        100.0 * c.inside,
+                        c.draws_per_member,
+                        c.seconds
+                    ),
+                }
+            }),
+        ),
+        row(
+            "mean area, plain → conditioned, cm²",
+            models.iter().map(|m| {
+                m.cohort
+                    .conditional
+                    .area_cm2
+                    .map_or(MISSING.to_owned(), |(a, b)| format!("{a:.1} → {b:.1}"))
+            }),
         ),
         row(
             "near copies (privacy guard)",
