@@ -12,6 +12,7 @@ use super::error::{ApiError, Problem};
 use super::extract::{Path, Query};
 use super::meshes::file_response;
 use super::models::{FormatQuery, load_model};
+use super::reports::stored;
 use crate::eval::Biomarkers;
 use crate::models::{ModelSummary, ReferencePopulation};
 use crate::report::exports::{MeshRow, members_csv, modes_csv, training_csv};
@@ -28,10 +29,6 @@ pub(super) fn router() -> OpenApiRouter<AppState> {
 
 fn csv_response(stem: &str, text: String) -> Response {
     file_response(text.into_bytes(), CSV, "attachment", &format!("{stem}.csv"))
-}
-
-fn stored<T: serde::de::DeserializeOwned>(what: &str, v: serde_json::Value) -> Result<T, ApiError> {
-    serde_json::from_value(v).map_err(|e| ApiError::internal(format!("stored {what}: {e}")))
 }
 
 /// The cohort's members as CSV, one row per member in member order.

@@ -28,7 +28,8 @@ pub(super) fn router() -> OpenApiRouter<AppState> {
         .routes(routes!(model_report))
 }
 
-fn stored<T: serde::de::DeserializeOwned>(
+/// A JSON value read back from the store; a mismatch is a 500 naming `what`.
+pub(super) fn stored<T: serde::de::DeserializeOwned>(
     what: &str,
     value: serde_json::Value,
 ) -> Result<T, ApiError> {
