@@ -213,7 +213,7 @@ fn bench_model(
         criterion: Criterion::Mean,
         only_accepted: false,
         exclude_near_copies: false,
-        max_draws: args.cohort_size,
+        max_draws: 20 * args.cohort_size,
     };
     let normalised = stored.training.normalised_f64();
     let started = Instant::now();

@@ -293,6 +293,54 @@ fn cohort_table(report: &BenchReport) -> String {
     table(&header("cohort", report), &rows)
 }
 
+/// Per biomarker and model: the cohort's mean and sd ratios to the training meshes' and its
+/// KS statistic against them.
+fn spread_table(report: &BenchReport) -> String {
+    let models = &report.models;
+    let names: Vec<&String> = models
+        .first()
+        .map(|m| m.cohort.report.biomarkers.keys().collect())
+        .unwrap_or_default();
+    let mut rows: Vec<Vec<String>> = names
+        .iter()
+        .map(|name| {
+            row(
+                name,
+                models.iter().map(|m| {
+                    m.cohort
+                        .report
+                        .biomarkers
+                        .get(*name)
+                        .and_then(|b| b.spread)
+                        .map_or(MISSING.to_owned(), |s| {
+                            format!(
+                                "{:.3} / {:.3} / {:.3}",
+                                s.mean_ratio, s.sd_ratio, s.ks_statistic
+                            )
+                        })
+                }),
+            )
+        })
+        .collect();
+    rows.push(row(
+        "near copies, % of members",
+        models.iter().map(|m| {
+            let r = &m.cohort.report;
+            format!(
+                "{:.1}",
+                100.0 * r.privacy.near_copies as f64 / m.cohort.size.max(1) as f64
+            )
+        }),
+    ));
+    rows.push(row(
+        "joint A^μ, %",
+        models
+            .iter()
+            .map(|m| format!("{:.1}", 100.0 * m.cohort.report.acceptance.mean)),
+    ));
+    table(&header("mean ratio / sd ratio / KS D", report), &rows)
+}
+
 fn fidelity_row(label: &str, volumes: &SummaryStats, f: &Fidelity) -> Vec<String> {
     let v = mean_std(MeanStd {
         mean: volumes.mean,
@@ -432,6 +480,10 @@ pub fn print_markdown(report: &BenchReport) {
     if !clustered.is_empty() {
         println!("### Clusters\n\n{}", clustered.concat());
     }
+    println!(
+        "### Spread against the training meshes: cohort mean ratio / sd ratio / KS D\n\n{}",
+        spread_table(report)
+    );
     println!(
         "### Volume fidelity against the generator ({} fresh phantoms, seed {})\n\n{}",
         report.fidelity_reference.phantoms,

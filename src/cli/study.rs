@@ -156,6 +156,9 @@ pub fn fit(args: &FitArgs) -> CliResult {
         "{}",
         evaluation_markdown(&[(args.model.as_str().to_owned(), &outcome.summary.evaluation)])
     );
+    if let Some(f) = &outcome.summary.fidelity {
+        println!("{}", fidelity_markdown(f));
+    }
     if let Some(c) = &outcome.summary.clusters {
         println!("{}", clusters_markdown(c, &training_names, &holdout_names));
     }
@@ -170,6 +173,43 @@ pub fn fit(args: &FitArgs) -> CliResult {
         args.out.display()
     );
     Ok(())
+}
+
+/// The spread of the fit's own cohort against the training meshes.
+fn fidelity_markdown(f: &crate::models::spread::FidelitySummary) -> String {
+    let header = [
+        "biomarker",
+        "training",
+        "cohort",
+        "mean ratio",
+        "sd ratio",
+        "KS D",
+    ]
+    .map(String::from);
+    let rows: Vec<Vec<String>> = f
+        .biomarkers
+        .iter()
+        .map(|(name, s)| {
+            vec![
+                name.clone(),
+                format!("{:.2} ± {:.2}", s.training_mean, s.training_sd),
+                format!("{:.2} ± {:.2}", s.synthetic_mean, s.synthetic_sd),
+                format!("{:.3}", s.mean_ratio),
+                format!("{:.3}", s.sd_ratio),
+                format!("{:.3}", s.ks_statistic),
+            ]
+        })
+        .collect();
+    let mut out = format!(
+        "### Spread of a cohort of {} against the training meshes ({} near copies)\n\n{}",
+        f.members,
+        f.near_copies,
+        super::tables::table(&header, &rows)
+    );
+    if let Some(note) = &f.population_note {
+        out.push_str(&format!("\nSmall population: {note}.\n"));
+    }
+    out
 }
 
 /// The clusters of a multi-atlas fit: the priors, then each mesh's weights and cluster.
@@ -322,7 +362,7 @@ pub fn evaluate_model(args: &EvaluateArgs) -> CliResult {
         criterion: Criterion::Mean,
         only_accepted: false,
         exclude_near_copies: false,
-        max_draws: samples,
+        max_draws: 20 * samples,
     };
     let (_, cohort) = sample_cohort(model, &reference, &index, &spec).map_err(|e| e.to_string())?;
     timings.push(timing("cohort", step));

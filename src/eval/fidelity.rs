@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use super::EvalError;
 use super::error::check_values;
-use super::stats::sorted;
+use super::stats::{mean, sample_sd, sorted};
 
 /// Terms of the Kolmogorov series summed for the p-value (it converges long before).
 const KOLMOGOROV_TERMS: u32 = 100;
@@ -40,6 +40,49 @@ impl Fidelity {
             wasserstein_1: wasserstein_1(synthetic, reference)?,
             ks_statistic: d,
             ks_p_value: ks_p_value(d, synthetic.len(), reference.len()),
+        })
+    }
+}
+
+/// How a synthetic sample of a biomarker spreads against the training population's values:
+/// the two means and sds, their ratios, and the two-sample KS statistic.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Spread {
+    /// Mean of the synthetic values.
+    pub synthetic_mean: f64,
+    /// Sample sd of the synthetic values.
+    pub synthetic_sd: f64,
+    /// Mean of the training values.
+    pub training_mean: f64,
+    /// Sample sd of the training values.
+    pub training_sd: f64,
+    /// `synthetic_mean / training_mean` (1 is unbiased).
+    pub mean_ratio: f64,
+    /// `synthetic_sd / training_sd`: below 1 the cohort is narrower than the population,
+    /// above 1 wider.
+    pub sd_ratio: f64,
+    /// Two-sample KS statistic `D` against the training values, 0–1.
+    pub ks_statistic: f64,
+    /// Its asymptotic p-value (small: the two samples differ).
+    pub ks_p_value: f64,
+}
+
+impl Spread {
+    /// Compares `synthetic` with `training` (both non-empty and finite).
+    pub fn between(synthetic: &[f64], training: &[f64]) -> Result<Self, EvalError> {
+        let d = ks_statistic(synthetic, training)?;
+        let (sm, tm) = (mean(synthetic), mean(training));
+        let (ss, ts) = (sample_sd(synthetic), sample_sd(training));
+        let ratio = |a: f64, b: f64| if b != 0.0 { a / b } else { f64::NAN };
+        Ok(Self {
+            synthetic_mean: sm,
+            synthetic_sd: ss,
+            training_mean: tm,
+            training_sd: ts,
+            mean_ratio: ratio(sm, tm),
+            sd_ratio: ratio(ss, ts),
+            ks_statistic: d,
+            ks_p_value: ks_p_value(d, synthetic.len(), training.len()),
         })
     }
 }
@@ -157,6 +200,21 @@ mod tests {
         assert!(ks_statistic(&[], &[1.0]).is_err());
         assert!(wasserstein_1(&[1.0], &[]).is_err());
         assert!(wasserstein_1(&[f64::NAN], &[1.0]).is_err());
+    }
+
+    #[test]
+    fn spread_by_hand() {
+        // Synthetic {1, 3} (mean 2, sd √2) against training {0, 2, 4} (mean 2, sd 2).
+        let s = Spread::between(&[1.0, 3.0], &[0.0, 2.0, 4.0]).unwrap();
+        assert_eq!(
+            (s.synthetic_mean, s.training_mean, s.training_sd),
+            (2.0, 2.0, 2.0)
+        );
+        assert!((s.sd_ratio - 2f64.sqrt() / 2.0).abs() < 1e-12);
+        assert_eq!(s.mean_ratio, 1.0);
+        // F_s − F_t: at 0: 0 − 1/3, at 1: 1/2 − 1/3, at 2: 1/2 − 2/3, at 3: 1 − 2/3.
+        assert!((s.ks_statistic - 1.0 / 3.0).abs() < 1e-12);
+        assert!(Spread::between(&[], &[1.0]).is_err());
     }
 
     #[test]

@@ -6,7 +6,7 @@
 //! point count and order, so shapes of different sizes become comparable vectors for PCA.
 
 use super::GeometryError;
-use super::cpd::{CpdResult, posterior_sums};
+use super::cpd::{CpdResult, NonRigidResult, posterior_sums};
 use super::kdtree::PointCloudIndex;
 use super::points;
 
@@ -55,6 +55,25 @@ pub fn normalised_shape(
         h.push(transform.inverse_apply(in_data_frame));
     }
     Ok(h)
+}
+
+/// Soft correspondences after a non-rigid refinement (eq. 3.10 with the refined posterior):
+/// `h_j = Σᵢ P_jᵢ·xᵢ / Σᵢ P_jᵢ` for `data` in the template frame (`[M, 3]`, mm). Template
+/// points that claim (almost) no data keep their deformed position.
+pub fn refined_correspondences(refined: &NonRigidResult) -> Vec<[f64; 3]> {
+    let sums = &refined.sums;
+    sums.p1
+        .iter()
+        .zip(&sums.px)
+        .zip(&refined.moved)
+        .map(|((p1, px), moved)| {
+            if *p1 > ROW_MASS_FLOOR {
+                points::scale(*px, 1.0 / p1)
+            } else {
+                *moved
+            }
+        })
+        .collect()
 }
 
 /// Flattens a point list `[M, 3]` to `[x₀, y₀, z₀, x₁, …]` (`3M` values), as used by PCA.

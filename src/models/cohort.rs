@@ -13,6 +13,7 @@ pub use super::targets_report::TargetsReport;
 use super::{ModelError, ReferencePopulation, ShapeModel};
 use crate::eval::Biomarkers;
 use crate::eval::acceptance::{Flags, Intervals, Rates, ReferenceStats, joint_acceptance_rates};
+use crate::eval::fidelity::Spread;
 use crate::eval::metrics::parallel_map;
 use crate::eval::privacy::{CorrespondedShapes, NearestTraining, PrivacyThreshold};
 use crate::eval::stats::SummaryStats;
@@ -104,6 +105,10 @@ pub struct BiomarkerReport {
     pub synthetic: SummaryStats,
     /// Share of members inside each interval.
     pub acceptance: Rates,
+    /// The cohort's spread against the training values: mean and sd ratios, KS statistic
+    /// (absent in reports stored before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spread: Option<Spread>,
 }
 
 /// The acceptance report of a cohort.
@@ -123,6 +128,13 @@ pub struct CohortReport {
     /// members; one row for single-atlas models.
     #[serde(default)]
     pub clusters: Vec<ClusterReport>,
+    /// Said when the training population is too small for its estimates.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub population_note: Option<String>,
+    /// Draws replaced because a biomarker fell outside the plausible range of a small
+    /// population (the training range widened by half its width on either side).
+    #[serde(default)]
+    pub implausible_replaced: usize,
     /// The targets of a conditional cohort and how well its members meet them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub targets: Option<TargetsReport>,
@@ -272,13 +284,18 @@ pub fn sample_cohort_given<M: ShapeModel + Sync + ?Sized>(
     conditional: Option<&Conditional>,
 ) -> Result<(Vec<Member>, CohortReport), ModelError> {
     let intervals = reference.intervals();
-    let filtering = spec.only_accepted || spec.exclude_near_copies || conditional.is_some();
+    let plausible = reference.plausible_ranges();
+    let filtering = spec.only_accepted
+        || spec.exclude_near_copies
+        || conditional.is_some()
+        || plausible.is_some();
     let limit = if filtering {
         spec.max_draws.max(spec.size)
     } else {
         spec.size
     } as u64;
     let (mut members, mut all_draws, mut replaced) = (Vec::with_capacity(spec.size), Vec::new(), 0);
+    let mut implausible = 0;
     let mut next = 0u64;
     while members.len() < spec.size && next < limit {
         let wanted = (spec.size - members.len()) as u64;
@@ -291,6 +308,13 @@ pub fn sample_cohort_given<M: ShapeModel + Sync + ?Sized>(
             let e = result?;
             all_draws.push(e.biomarkers);
             if conditional.is_some_and(|c| !c.meets(&e.biomarkers)) {
+                continue;
+            }
+            if plausible
+                .as_ref()
+                .is_some_and(|ranges| !within(ranges, &e.biomarkers))
+            {
+                implausible += 1;
                 continue;
             }
             if spec.exclude_near_copies && e.near_copy {
@@ -349,7 +373,17 @@ pub fn sample_cohort_given<M: ShapeModel + Sync + ?Sized>(
     let mut report = report(reference, &intervals, &members, &all_draws, privacy)?;
     report.clusters = cluster_reports(reference, &intervals, &members, model.atlases().len())?;
     report.targets = conditional.map(|c| TargetsReport::new(c, &members, all_draws.len()));
+    report.population_note = reference.small_population_note();
+    report.implausible_replaced = implausible;
     Ok((members, report))
+}
+
+/// Whether every biomarker lies in its range `(low, high)`.
+fn within(ranges: &[(f64, f64)], biomarkers: &Biomarkers) -> bool {
+    ranges
+        .iter()
+        .zip(biomarkers.values())
+        .all(|((low, high), v)| (*low..=*high).contains(&v))
 }
 
 /// `columns[b][k]`: biomarker `b` of the `k`-th of `biomarkers`.
@@ -378,6 +412,7 @@ fn report(
                 intervals: intervals[b],
                 synthetic: SummaryStats::from_values(&member_columns[b])?,
                 acceptance: intervals[b].acceptance_rates(&member_columns[b]),
+                spread: Some(Spread::between(&member_columns[b], &reference.values[b])?),
             },
         );
     }
@@ -388,6 +423,8 @@ fn report(
         draw_acceptance: joint_acceptance_rates(intervals, &draw_columns)?,
         privacy,
         clusters: Vec::new(),
+        population_note: None,
+        implausible_replaced: 0,
         targets: None,
     })
 }
@@ -398,8 +435,8 @@ mod tests {
     use crate::mesh::phantom::{self, Family};
     use crate::models::{Draw, ModelError, Reconstruction};
 
-    /// Hands out training shape 0 on even draws and a 20% larger copy of it on odd draws.
-    struct Copier(Vec<Mesh>);
+    /// Hands out training shape 0 on even draws and a copy of it scaled by `.1` on odd draws.
+    struct Copier(Vec<Mesh>, f64);
 
     impl ShapeModel for Copier {
         fn atlases(&self) -> &[Mesh] {
@@ -410,7 +447,7 @@ mod tests {
             if rng.get_stream() % 2 == 1 {
                 mesh.vertices
                     .iter_mut()
-                    .for_each(|p| *p = p.map(|c| 1.2 * c));
+                    .for_each(|p| *p = p.map(|c| self.1 * c));
             }
             Ok(Draw { mesh, cluster: 0 })
         }
@@ -466,7 +503,7 @@ mod tests {
         let (shapes, privacy) = privacy_of(&meshes);
         let training = TrainingIndex::new(&shapes, &privacy).unwrap();
         let reference = ReferencePopulation::from_meshes(&meshes).unwrap();
-        let model = Copier(meshes.clone());
+        let model = Copier(meshes.clone(), 1.17);
 
         let (members, report) =
             sample_cohort(&model, &reference, &training, &spec(4, false)).unwrap();
@@ -500,17 +537,39 @@ mod tests {
     }
 
     #[test]
+    fn a_small_population_says_so_and_keeps_members_near_its_range() {
+        let meshes = scaled_copies(Family::Lv, 4);
+        let (shapes, privacy) = privacy_of(&meshes);
+        let training = TrainingIndex::new(&shapes, &privacy).unwrap();
+        let reference = ReferencePopulation::from_meshes(&meshes).unwrap();
+        // Odd draws are twice as large (volume 8×): far outside the widened training range.
+        let model = Copier(meshes.clone(), 2.0);
+        let (members, report) =
+            sample_cohort(&model, &reference, &training, &spec(4, false)).unwrap();
+        assert!(members.iter().all(|m| m.draw % 2 == 0), "{members:?}");
+        assert_eq!((report.implausible_replaced, report.draws), (3, 7));
+        let note = report
+            .population_note
+            .expect("a note for 4 training meshes");
+        assert!(note.contains("only 4 training meshes"), "{note}");
+        let volume = &report.biomarkers["volume_ml"];
+        let spread = volume.spread.expect("a spread per biomarker");
+        assert!((spread.training_mean - volume.reference.mean).abs() < 1e-9);
+        assert_eq!(spread.synthetic_sd, 0.0);
+    }
+
+    #[test]
     fn acceptance_filter_and_its_bound() {
         let meshes = scaled_copies(Family::Lv, 2);
         let (shapes, privacy) = privacy_of(&meshes);
         let training = TrainingIndex::new(&shapes, &privacy).unwrap();
         let reference = ReferencePopulation::from_meshes(&meshes).unwrap();
-        let model = Copier(meshes.clone());
+        let model = Copier(meshes.clone(), 1.17);
         let only = CohortSpec {
             only_accepted: true,
             ..spec(3, false)
         };
-        // Odd draws are 1.2× larger (volume 1.73×): outside the training range.
+        // Odd draws are 1.17× larger (volume 1.6×): outside the training range.
         let (members, _) = sample_cohort(&model, &reference, &training, &only).unwrap();
         assert!(members.iter().all(|m| m.accepted.range && m.draw % 2 == 0));
         let unreachable = CohortSpec {

@@ -6,6 +6,7 @@ use std::sync::Arc;
 use super::evaluation::evaluate;
 use super::progress::{Progress, Stages};
 use super::registry::ModelType;
+use super::spread::fidelity_summary;
 use super::stored::{FittedModel, StoredModel};
 use super::{
     AtlasInfo, ClusterSummary, FitOutcome, LossCurve, ModelError, ModelSummary,
@@ -82,6 +83,7 @@ pub fn finish<M: FittedModel + 'static>(
         &parts.normalised,
         DEFAULT_PERCENTILE,
     )?;
+    let fidelity = fidelity_summary(&parts.model, &reference, &training, input.seed)?;
     stages.close();
     let atlases: Vec<AtlasInfo> = parts
         .model
@@ -104,6 +106,7 @@ pub fn finish<M: FittedModel + 'static>(
         timings: StageTiming::all(&stages),
         losses: parts.losses,
         clusters: parts.clusters,
+        fidelity: Some(fidelity),
     };
     Ok(FitOutcome {
         model: StoredModel {

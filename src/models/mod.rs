@@ -24,6 +24,7 @@ pub mod reference;
 pub mod registry;
 pub mod rsmp;
 pub mod shape_modes;
+pub mod spread;
 pub mod stored;
 mod targets_report;
 pub mod workers;
@@ -255,6 +256,10 @@ pub struct ModelSummary {
     /// Soft clusters of models with several atlases (absent: one atlas, every mesh in it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clusters: Option<ClusterSummary>,
+    /// How a seeded cohort of the model spreads against the training population (absent in
+    /// summaries stored before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fidelity: Option<spread::FidelitySummary>,
 }
 
 /// The soft clusters of a multi-atlas fit (thesis eq. 5.13), in mesh order.

@@ -8,6 +8,10 @@ use crate::eval::Biomarkers;
 use crate::eval::acceptance::{Intervals, ReferenceStats};
 use crate::mesh::Mesh;
 
+/// Below this many training meshes a population is small: its statistics are rough and
+/// cohorts are kept near its range.
+pub const SMALL_POPULATION: usize = 20;
+
 /// Biomarkers of the training population and their reference statistics.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ReferencePopulation {
@@ -40,6 +44,44 @@ impl ReferencePopulation {
             units: Biomarkers::UNITS.iter().map(|s| (*s).to_owned()).collect(),
             values,
             stats,
+        })
+    }
+
+    /// Training meshes behind the statistics.
+    pub fn count(&self) -> usize {
+        self.values.first().map_or(0, Vec::len)
+    }
+
+    /// Whether the population is too small for its estimates (fewer than
+    /// [`SMALL_POPULATION`] meshes): cohorts then say so and stay near the training range.
+    pub fn is_small(&self) -> bool {
+        self.count() < SMALL_POPULATION
+    }
+
+    /// What a cohort of a small population tells its user (none for a large one).
+    pub fn small_population_note(&self) -> Option<String> {
+        self.is_small().then(|| {
+            format!(
+                "only {} training meshes (fewer than {SMALL_POPULATION}): the population's \
+                 means, sds and ranges are rough estimates, so acceptance and spread figures \
+                 are uncertain; members with a biomarker beyond the training range widened by \
+                 half its width on either side are drawn again",
+                self.count()
+            )
+        })
+    }
+
+    /// The plausible range of each biomarker for a small population: the training range
+    /// widened by half its width on either side (`None` for a large population).
+    pub fn plausible_ranges(&self) -> Option<Vec<(f64, f64)>> {
+        self.is_small().then(|| {
+            self.stats
+                .iter()
+                .map(|s| {
+                    let half = 0.5 * (s.max - s.min);
+                    (s.min - half, s.max + half)
+                })
+                .collect()
         })
     }
 

@@ -6,6 +6,7 @@ use std::fmt::Write;
 
 use super::cohort_plots::biomarker_violin;
 use super::plot::figure;
+use super::spread_table::{SpreadRow, spread_table};
 use super::{Picture, escape, mean_sd, page, pictures_section};
 use crate::eval::acceptance::Rates;
 use crate::models::clusters::ClusterReport;
@@ -40,8 +41,32 @@ pub fn cohort_page(c: &CohortPage<'_>) -> String {
         escape(c.model_id),
         c.report.draws
     );
+    if let Some(note) = &c.report.population_note {
+        let _ = write!(
+            body,
+            "<p class=\"note\">Small population: {}.</p>",
+            escape(note)
+        );
+    }
     body.push_str(&targets_table(c.report));
     body.push_str(&acceptance_table(c.report));
+    let rows: Vec<SpreadRow<'_>> = c
+        .report
+        .biomarkers
+        .iter()
+        .filter_map(|(name, b)| {
+            b.spread.as_ref().map(|spread| SpreadRow {
+                name,
+                unit: &b.unit,
+                spread,
+            })
+        })
+        .collect();
+    body.push_str(&spread_table(
+        "Spread against the training population",
+        "Ratios near 1 and a small KS statistic: the cohort varies like the population; an sd ratio below 1 means a narrower cohort (marked outside 0.85–1.15).",
+        &rows,
+    ));
     let p = &c.report.privacy;
     let _ = write!(
         body,

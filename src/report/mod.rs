@@ -11,6 +11,7 @@ mod model_plots;
 mod plot;
 pub mod png;
 pub mod render;
+mod spread_table;
 pub mod svg;
 mod ticks;
 
@@ -40,7 +41,7 @@ pub fn escape(s: &str) -> String {
 const STYLE: &str = "body{font-family:system-ui,sans-serif;margin:24px;color:#222;max-width:1200px}\
 table{border-collapse:collapse;margin:12px 0}td,th{border:1px solid #ccc;padding:4px 8px;text-align:right}\
 th:first-child,td:first-child{text-align:left}.plots{display:flex;flex-wrap:wrap;gap:12px}\
-.note{color:#555;font-size:0.9em}figure{margin:0}figure>svg{display:block}figcaption{font-size:0.85em;text-align:right}figure.render img{display:block;max-width:100%}";
+.note{color:#555;font-size:0.9em}figure{margin:0}figure>svg{display:block}figcaption{font-size:0.85em;text-align:right}figure.render img{display:block;max-width:100%}td.warn{background:#fde2d2}";
 
 /// A complete HTML document.
 fn page(title: &str, body: &str) -> String {

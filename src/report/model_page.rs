@@ -5,6 +5,7 @@ use std::fmt::Write;
 
 use super::model_plots::{CLOSED_FORM, model_plot, model_plot_names};
 use super::plot::figure;
+use super::spread_table::{SpreadRow, spread_table};
 use super::{Picture, escape, mean_sd, page, pictures_section};
 use crate::eval::metrics::DistanceSummary;
 use crate::models::ModelSummary;
@@ -41,6 +42,7 @@ pub fn model_page(m: &ModelPage<'_>) -> String {
         escape(&e.distance)
     );
     body.push_str(&metric_table(m));
+    body.push_str(&fidelity_section(s));
     body.push_str(&clusters_section(m));
     body.push_str(&pictures_section(m.pictures));
     body.push_str("<h2>Distributions</h2><div class=\"plots\">");
@@ -55,6 +57,48 @@ pub fn model_page(m: &ModelPage<'_>) -> String {
     }
     body.push_str(&timing_table(s));
     page(&format!("Model {}", m.model_id), &body)
+}
+
+/// The spread of the fit's own seeded cohort, with the small-population note.
+fn fidelity_section(s: &ModelSummary) -> String {
+    let Some(f) = &s.fidelity else {
+        return String::new();
+    };
+    let units: std::collections::BTreeMap<&str, &str> = crate::eval::Biomarkers::NAMES
+        .iter()
+        .copied()
+        .zip(crate::eval::Biomarkers::UNITS.iter().copied())
+        .collect();
+    let rows: Vec<SpreadRow<'_>> = f
+        .biomarkers
+        .iter()
+        .map(|(name, spread)| SpreadRow {
+            name,
+            unit: units.get(name.as_str()).copied().unwrap_or(""),
+            spread,
+        })
+        .collect();
+    let sentence = format!(
+        "A cohort of {} members (seed {}) against the {} training meshes; {} near copies ({:.1}%).",
+        f.members,
+        f.seed,
+        s.training_count,
+        f.near_copies,
+        100.0 * f.near_copies as f64 / f.members.max(1) as f64
+    );
+    let mut out = spread_table(
+        "Spread of a cohort against the training population",
+        &sentence,
+        &rows,
+    );
+    if let Some(note) = &f.population_note {
+        let _ = write!(
+            out,
+            "<p class=\"note\">Small population: {}.</p>",
+            escape(note)
+        );
+    }
+    out
 }
 
 /// "Atlas of N vertices", or "M atlases of N₀, N₁ … vertices".

@@ -5,10 +5,12 @@
 //! are reported in the original coordinates (mm).
 
 mod estep;
+mod nonrigid;
 
 use serde::{Deserialize, Serialize};
 
 pub use estep::PosteriorSums;
+pub use nonrigid::{NonRigidParams, NonRigidResult, nonrigid_cpd};
 
 use super::GeometryError;
 use super::error::check_points;

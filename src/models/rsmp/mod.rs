@@ -14,7 +14,10 @@ use super::{
     Draw, FitInput, FittedParts, ModelError, ModelFamily, Reconstruction, ShapeModel,
     StandardLatent,
 };
-use crate::geometry::correspondence::{flatten, normalised_shape, unflatten};
+use crate::geometry::correspondence::{
+    flatten, normalised_shape, refined_correspondences, unflatten,
+};
+use crate::geometry::cpd::{NonRigidParams, nonrigid_cpd};
 use crate::geometry::pca::{PcaModel, PcaParams, Sampling};
 use crate::mesh::Mesh;
 
@@ -40,6 +43,10 @@ pub struct RsmpModel {
     pub pca: PcaModel,
     /// Registration settings, reused to reconstruct unseen meshes.
     pub alignment: AlignmentParams,
+    /// The non-rigid refinement of the correspondences (absent: rigid correspondences only,
+    /// as in models stored before it existed).
+    #[serde(default)]
+    pub nonrigid: Option<NonRigidParams>,
 }
 
 impl RsmpModel {
@@ -64,12 +71,20 @@ impl RsmpModel {
     /// template frame (mm).
     fn normalise(&self, mesh: &Mesh) -> Result<NormalisedInput, ModelError> {
         let cpd = alignment::register(&self.template.vertices, &mesh.vertices, &self.alignment)?;
-        let h = normalised_shape(&self.template.vertices, &mesh.vertices, &cpd)?;
-        let aligned = mesh
+        let aligned: Vec<[f64; 3]> = mesh
             .vertices
             .iter()
             .map(|p| cpd.transform.inverse_apply(*p))
             .collect();
+        let h = match &self.nonrigid {
+            Some(params) => {
+                // σ² of the rigid fit is in the data frame; the template frame is 1/s smaller.
+                let sigma2 = cpd.sigma2 / cpd.transform.scale.powi(2);
+                let refined = nonrigid_cpd(&self.template.vertices, &aligned, params, sigma2)?;
+                refined_correspondences(&refined)
+            }
+            None => normalised_shape(&self.template.vertices, &mesh.vertices, &cpd)?,
+        };
         Ok((h, aligned))
     }
 }
@@ -207,6 +222,7 @@ fn fit(
             cumulative_explained: vec![],
         },
         alignment: params.alignment(),
+        nonrigid: params.nonrigid(),
     };
     let total = training.len() as u64;
     let registered = map_items(

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::geometry::cpd::RigidCpdParams;
+use crate::geometry::cpd::{NonRigidParams, RigidCpdParams};
 use crate::models::ModelError;
 use crate::models::alignment::AlignmentParams;
 
@@ -30,6 +30,14 @@ pub struct RsmpParams {
     pub cpd_max_iterations: usize,
     /// CPD stopping tolerance (relative change).
     pub cpd_tolerance: f64,
+    /// Refine each rigid registration by a smooth non-rigid CPD before reading the soft
+    /// correspondences, so that template points land on the matching part of the surface
+    /// (e.g. the same wall of a hollow organ); off gives rigid correspondences only.
+    pub nonrigid: bool,
+    /// Width of the non-rigid displacement field as a share of the template's rms radius.
+    pub nonrigid_beta: f64,
+    /// Stiffness λ of the non-rigid displacement field.
+    pub nonrigid_lambda: f64,
 }
 
 impl Default for RsmpParams {
@@ -44,6 +52,9 @@ impl Default for RsmpParams {
             cpd_w: cpd.w,
             cpd_max_iterations: cpd.max_iterations,
             cpd_tolerance: cpd.tolerance,
+            nonrigid: true,
+            nonrigid_beta: NonRigidParams::default().beta,
+            nonrigid_lambda: NonRigidParams::default().lambda,
         }
     }
 }
@@ -78,7 +89,26 @@ impl RsmpParams {
         {
             return Err(ModelError::invalid("cpd_tolerance", "must be in (0, 1)"));
         }
+        for (name, value) in [
+            ("nonrigid_beta", self.nonrigid_beta),
+            ("nonrigid_lambda", self.nonrigid_lambda),
+        ] {
+            if !(value.is_finite() && value > 0.0 && value <= 100.0) {
+                return Err(ModelError::invalid(
+                    name,
+                    format!("must be in (0, 100], got {value}"),
+                ));
+            }
+        }
         Ok(CheckedRsmpParams(self))
+    }
+
+    pub(super) fn nonrigid(&self) -> Option<NonRigidParams> {
+        self.nonrigid.then(|| NonRigidParams {
+            beta: self.nonrigid_beta,
+            lambda: self.nonrigid_lambda,
+            ..NonRigidParams::default()
+        })
     }
 
     pub(super) fn alignment(&self) -> AlignmentParams {
