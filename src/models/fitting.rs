@@ -78,9 +78,10 @@ pub fn finish<M: FittedModel + 'static>(
         progress,
     )?;
     let reference = ReferencePopulation::from_meshes(input.training)?;
+    let compared = parts.model.regenerated_training(&parts.normalised)?;
     let training = TrainingShapes::new(
         &parts.aligned_training,
-        &parts.normalised,
+        compared.as_ref().unwrap_or(&parts.normalised),
         DEFAULT_PERCENTILE,
     )?;
     let fidelity = fidelity_summary(&parts.model, &reference, &training, input.seed)?;

@@ -88,6 +88,18 @@ pub trait ShapeModel {
     fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Draw, ModelError>;
     /// Reconstructs an unseen mesh through the model.
     fn reconstruct(&self, mesh: &Mesh) -> Result<Reconstruction, ModelError>;
+    /// The training shapes as the model's generator reproduces them, `[atlas][shape]`
+    /// (`[N_μm, 3]` mm each), given the normalised shapes `[atlas][shape]`: what the privacy
+    /// guard compares members with, so that a member (a decoder output) is measured against
+    /// decoder outputs, like with like. `None`: the normalised shapes themselves.
+    #[allow(clippy::type_complexity)]
+    fn regenerated_training(
+        &self,
+        normalised: &[Vec<Vec<[f64; 3]>>],
+    ) -> Result<Option<Vec<Vec<Vec<[f64; 3]>>>>, ModelError> {
+        let _ = normalised;
+        Ok(None)
+    }
     /// Variances `λᵢ` of the kept PCA modes in mm², largest first (PCA models only).
     fn principal_variances_mm2(&self) -> Option<Vec<f64>> {
         None
@@ -117,7 +129,9 @@ pub struct TrainingShapes {
     /// Vertices of each training mesh after pre-alignment, mm, `[n_vertices, 3]` each.
     pub shapes: Vec<Vec<[f32; 3]>>,
     /// `normalised[m][k]`: training mesh `k` normalised to atlas `m` (in correspondence with
-    /// it), mm, `[N_μm, 3]`: what cohort members of cluster `m` are compared with.
+    /// it), mm, `[N_μm, 3]`, as the model's generator reproduces it where it has one (see
+    /// [`ShapeModel::regenerated_training`]): what cohort members of cluster `m` are
+    /// compared with.
     pub normalised: Vec<Vec<Vec<[f32; 3]>>>,
     /// Near-copy threshold of each atlas, from the nearest-neighbour distances of the
     /// training shapes normalised to it.

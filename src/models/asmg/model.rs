@@ -295,6 +295,17 @@ impl AsmgModel {
             .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))
     }
 
+    /// The generator's reconstructions of many normalised shapes (`[N_μ, 3]` mm each).
+    pub fn regenerate_all(
+        &self,
+        shapes: &[Vec<[f64; 3]>],
+    ) -> Result<Vec<Vec<[f64; 3]>>, ModelError> {
+        let nets = self.networks()?;
+        let flat: Vec<Vec<f32>> = shapes.iter().map(|h| flatten_f32(h)).collect();
+        let out = nets.generator.reconstruct(&flat).map_err(nn_error)?;
+        Ok(out.iter().map(|s| self.to_mesh(s).vertices).collect())
+    }
+
     /// The latent code of a standard-normal vector `ε` (`[L]`): through the latent
     /// Gaussian fitted to the training codes, or `ε` itself for models without one.
     fn code_of(&self, standard: Vec<f32>) -> Vec<f32> {
@@ -345,6 +356,14 @@ impl ShapeModel for AsmgModel {
             .pop()
             .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))?;
         Ok(Draw { mesh, cluster: 0 })
+    }
+
+    fn regenerated_training(
+        &self,
+        normalised: &[Vec<Vec<[f64; 3]>>],
+    ) -> Result<Option<Vec<Vec<Vec<[f64; 3]>>>>, ModelError> {
+        let shapes = normalised.first().map(Vec::as_slice).unwrap_or_default();
+        Ok(Some(vec![self.regenerate_all(shapes)?]))
     }
 
     fn standard_latent(&self) -> Option<StandardLatent> {

@@ -141,6 +141,19 @@ impl ShapeModel for MatlasModel {
         })
     }
 
+    /// Shapes normalised to atlas `m` through generator `m`.
+    fn regenerated_training(
+        &self,
+        normalised: &[Vec<Vec<[f64; 3]>>],
+    ) -> Result<Option<Vec<Vec<Vec<[f64; 3]>>>>, ModelError> {
+        self.parts
+            .iter()
+            .zip(normalised)
+            .map(|(part, shapes)| part.regenerate_all(shapes))
+            .collect::<Result<Vec<_>, _>>()
+            .map(Some)
+    }
+
     fn standard_latent(&self) -> Option<StandardLatent> {
         let parts: Vec<StandardLatent> = self
             .parts
