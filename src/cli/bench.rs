@@ -245,9 +245,16 @@ fn bench_model(
     });
     drop(members);
     let text = |e: crate::eval::EvalError| e.to_string();
+    let fresh_columns =
+        crate::models::cohort::columns(&data.fresh_biomarkers.iter().collect::<Vec<_>>());
     let fidelity = VolumeFidelity {
         synthetic: SummaryStats::from_values(&volumes).map_err(text)?,
         fidelity: Fidelity::between(&volumes, &data.fresh_volumes).map_err(text)?,
+        fresh_acceptance: crate::eval::acceptance::joint_acceptance_rates(
+            &outcome.reference.intervals(),
+            &fresh_columns,
+        )
+        .map_err(text)?,
     };
     let cohort = CohortBench {
         size: args.cohort_size,

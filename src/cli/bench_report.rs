@@ -147,6 +147,9 @@ pub struct VolumeFidelity {
     pub synthetic: SummaryStats,
     /// W1 (ml) and KS against the fresh phantoms' exact volumes.
     pub fidelity: Fidelity,
+    /// Joint acceptance of the fresh phantoms (real subjects of the same population) against
+    /// this model's training intervals: what a faithful cohort scores.
+    pub fresh_acceptance: crate::eval::acceptance::Rates,
 }
 
 /// Timed specificity against the training meshes.
@@ -337,6 +340,12 @@ fn spread_table(report: &BenchReport) -> String {
         models
             .iter()
             .map(|m| format!("{:.1}", 100.0 * m.cohort.report.acceptance.mean)),
+    ));
+    rows.push(row(
+        "joint A^μ of fresh phantoms (the population's own), %",
+        models
+            .iter()
+            .map(|m| format!("{:.1}", 100.0 * m.fidelity.fresh_acceptance.mean)),
     ));
     table(&header("mean ratio / sd ratio / KS D", report), &rows)
 }
