@@ -26,7 +26,7 @@ pub fn spread_table(title: &str, sentence: &str, rows: &[SpreadRow<'_>]) -> Stri
         return String::new();
     }
     let mut t = format!(
-        "<h2>{}</h2><p>{}</p><table><tr><th>biomarker</th><th>unit</th><th>training mean ± sd</th><th>cohort mean ± sd</th><th>mean ratio</th><th>sd ratio</th><th>KS D (p)</th></tr>",
+        "<h2>{}</h2><p>{}</p><table><tr><th>biomarker</th><th>unit</th><th>training mean ± sd</th><th>cohort mean ± sd</th><th>mean ratio</th><th>sd ratio</th><th>KS D against training</th></tr>",
         escape(title),
         escape(sentence)
     );
@@ -35,7 +35,7 @@ pub fn spread_table(title: &str, sentence: &str, rows: &[SpreadRow<'_>]) -> Stri
         let outside = !(SD_RATIO_BAND.0..=SD_RATIO_BAND.1).contains(&s.sd_ratio);
         let _ = write!(
             t,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.3}</td><td{}>{:.3}</td><td>{:.3} ({:.2e})</td></tr>",
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.3}</td><td{}>{:.3}</td><td>{:.3} ({})</td></tr>",
             escape(r.name),
             escape(r.unit),
             mean_sd(s.training_mean, s.training_sd),
@@ -44,11 +44,20 @@ pub fn spread_table(title: &str, sentence: &str, rows: &[SpreadRow<'_>]) -> Stri
             if outside { " class=\"warn\"" } else { "" },
             s.sd_ratio,
             s.ks_statistic,
-            s.ks_p_value
+            p_value(s.ks_p_value)
         );
     }
     t.push_str("</table>");
     t
+}
+
+/// `p = 0.47`, or `p = 3.2e-9` when it would round to zero.
+fn p_value(p: f64) -> String {
+    if p >= 0.001 {
+        format!("p = {p:.3}")
+    } else {
+        format!("p = {p:.1e}")
+    }
 }
 
 #[cfg(test)]
@@ -70,5 +79,9 @@ mod tests {
         assert!(html.contains("<td>volume_ml</td>"), "{html}");
         assert!(html.contains("<td class=\"warn\">0.100</td>"), "{html}");
         assert!(spread_table("Spread", "", &[]).is_empty());
+        assert_eq!(
+            (p_value(0.4731), p_value(3.2e-9)),
+            ("p = 0.473".to_owned(), "p = 3.2e-9".to_owned())
+        );
     }
 }
