@@ -79,6 +79,13 @@ pub fn det(a: &Mat3) -> f64 {
         + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
 }
 
+/// Root-mean-square distance of `points` from their centroid (mm): their size.
+pub fn rms_radius(points: &[[f64; 3]]) -> f64 {
+    let c = centroid(points, None);
+    let sum: f64 = points.iter().map(|p| dist2(*p, c)).sum();
+    (sum / points.len().max(1) as f64).sqrt()
+}
+
 /// Weighted centroid `Σ wᵢ pᵢ / Σ wᵢ`; the plain centroid when `weights` is `None`.
 /// Returns the origin for an empty set or zero total weight.
 pub fn centroid(points: &[[f64; 3]], weights: Option<&[f64]>) -> [f64; 3] {

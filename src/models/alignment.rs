@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::geometry::cpd::{CpdResult, RigidCpdParams, rigid_cpd_from, rigid_cpd_warm};
 use crate::geometry::distance::directed;
 use crate::geometry::kdtree::PointCloudIndex;
-use crate::geometry::points::{centroid, dist2, mat_vec, sub};
+use crate::geometry::points::{centroid, mat_vec, rms_radius, sub};
 use crate::geometry::{GeometryError, RigidTransform, axis_permutation_rotations};
 use crate::mesh::Mesh;
 
@@ -63,12 +63,6 @@ pub fn median_resolution_index(meshes: &[Mesh]) -> usize {
 
 /// Starts kept from the rotation search for the intermediate registration.
 const SEARCH_CANDIDATES: usize = 6;
-
-fn rms_radius(points: &[[f64; 3]]) -> f64 {
-    let c = centroid(points, None);
-    let sum: f64 = points.iter().map(|p| dist2(*p, c)).sum();
-    (sum / points.len().max(1) as f64).sqrt()
-}
 
 /// Area per point (mm²) of `points` spread over a sphere of their rms radius: about the
 /// squared point spacing, the variance floor of the coarse registration stages.

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 use super::estep::{PosteriorSums, posterior_sums_moved};
 use crate::geometry::GeometryError;
 use crate::geometry::error::check_points;
-use crate::geometry::points::{dist2, dot, norm2};
+use crate::geometry::points::{dist2, dot, norm2, rms_radius};
 
 /// σ² never falls below this fraction of its starting value.
 const SIGMA2_FLOOR_RELATIVE: f64 = 1e-6;
@@ -146,15 +146,6 @@ impl Field {
             .map(|(m, y)| [y[0] + v[(m, 0)], y[1] + v[(m, 1)], y[2] + v[(m, 2)]])
             .collect()
     }
-}
-
-fn rms_radius(points: &[[f64; 3]]) -> f64 {
-    let n = points.len().max(1) as f64;
-    let c = points
-        .iter()
-        .fold([0.0; 3], |a, p| [a[0] + p[0], a[1] + p[1], a[2] + p[2]])
-        .map(|v| v / n);
-    (points.iter().map(|p| dist2(*p, c)).sum::<f64>() / n).sqrt()
 }
 
 /// `σ² = (Σₙ Pt1ₙ‖xₙ‖² − 2 Σₘ (PX)ₘ·y'ₘ + Σₘ P1ₘ‖y'ₘ‖²) / (3 N_P)`.
