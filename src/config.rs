@@ -28,6 +28,12 @@ pub struct Config {
     #[arg(long, env = "COHORTFORGE_WORKERS", default_value_t = 1)]
     pub workers: usize,
 
+    /// Largest cohort drawn inside its request (answered 201); larger ones, and any sent
+    /// with `Prefer: respond-async`, are queued for the workers (answered 202). Also the
+    /// largest cohort whose members are listed inline in `GET /v1/cohorts/{id}`.
+    #[arg(long, env = "COHORTFORGE_SYNC_COHORT_MAX", default_value_t = 1_000)]
+    pub sync_cohort_max: usize,
+
     /// Bearer token that may do everything. With no token configured, /v1 is open.
     #[arg(long, env = "COHORTFORGE_ADMIN_TOKEN", hide_env_values = true)]
     pub admin_token: Option<String>,
@@ -73,6 +79,7 @@ impl Config {
             max_body_bytes: 256 * 1024 * 1024,
             max_vertices: 1_000_000,
             workers: 1,
+            sync_cohort_max: 1_000,
             admin_token: None,
             read_token: None,
             insecure: false,

@@ -1,149 +1,106 @@
-//! Virtual cohorts: sample from a model with an acceptance report; download members.
-
-use std::collections::BTreeMap;
-use std::io::Write;
+//! Virtual cohorts: sample from a model with an acceptance report, at once or on the worker
+//! pool; page through members; cancel a cohort being drawn.
 
 use axum::extract::State;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
-use axum::response::{IntoResponse, Response};
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use utoipa::ToSchema;
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
 
 use super::AppState;
 use super::error::{ApiError, Problem};
-use super::extract::{Json, Path, Query};
-use super::meshes::{MeshFile, mesh_file_response};
-use super::models::{FormatQuery, load_model};
+use super::extract::{Json, PageQuery, Paginated, Path, Query};
 use crate::eval::Biomarkers;
 use crate::geometry::pca::Sampling;
-use crate::mesh;
-use crate::models::cohort::{CohortSpec, Criterion, Member, TrainingIndex, sample_cohort_given};
-use crate::models::conditional::{Conditional, Target};
-use crate::models::{ModelError, ReferencePopulation};
-use crate::report::exports::{member_file_name, members_csv};
-use crate::store::cohorts::{CohortRecord, NewMember};
+use crate::jobs::cohort::{
+    CohortRequest, MAX_COHORT_SIZE, MemberSummary, draw_cohort, load_source,
+};
+use crate::jobs::run::RunError;
+use crate::models::ModelError;
+use crate::models::conditional::Target;
+use crate::models::progress::Silent;
+use crate::store::StoreError;
+use crate::store::cohorts::{CohortRecord, NewCohortJob};
+use crate::store::jobs::{JobProgress, JobStatus};
 
-/// Largest cohort.
-pub const MAX_COHORT_SIZE: usize = 10_000;
-/// Draws allowed per wanted member with `only_accepted`.
-pub const DRAWS_PER_MEMBER: usize = 20;
+/// Times a worker may start a cohort job before it is failed.
+const MAX_ATTEMPTS: i64 = 3;
 
 pub(super) fn router() -> OpenApiRouter<AppState> {
     OpenApiRouter::new()
         .routes(routes!(create_cohort))
         .routes(routes!(get_cohort))
-        .routes(routes!(download_member))
-        .routes(routes!(download_archive))
+        .routes(routes!(list_members))
+        .routes(routes!(cancel_cohort))
+        .merge(super::cohort_files::router())
 }
 
-/// Acceptance settings of a cohort request.
-#[derive(Debug, Clone, Copy, Default, Deserialize, Serialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct AcceptanceRequest {
-    /// Criterion used by `only_accepted`: `range`, `mode` or `mean` (default).
-    #[serde(default)]
-    #[schema(value_type = String, example = "mean")]
-    pub criterion: Criterion,
-}
-
-/// Body of `POST /v1/models/{id}/cohorts`.
-#[derive(Debug, Clone, Deserialize, Serialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct CreateCohort {
-    /// Members wanted (1–10,000).
-    pub size: usize,
-    /// Seed (default 0): the same model, seed and request give identical members.
-    #[serde(default)]
-    pub seed: u64,
-    /// `gaussian` (default; coefficients clipped at 3 sd) or `uniform`.
-    #[serde(default)]
-    #[schema(value_type = String, example = "gaussian")]
-    pub sampling: Sampling,
-    /// Acceptance criterion.
-    #[serde(default)]
-    pub acceptance: AcceptanceRequest,
-    /// Keep drawing until `size` members pass the criterion on every biomarker (at most
-    /// 20 draws per member).
-    #[serde(default)]
-    pub only_accepted: bool,
-    /// Draw again instead of keeping a member that is a near copy of a training shape
-    /// (nearer than the model's privacy threshold).
-    #[serde(default)]
-    pub exclude_near_copies: bool,
-    /// Targets by biomarker name (`volume_ml`, `area_cm2`, …): an interval
-    /// `{"min": 120, "max": 160}` (either end may be left out) that every member meets, or a
-    /// distribution `{"mean": 140, "sd": 10}` the members follow. Members are drawn from the
-    /// model's Gaussian conditioned on the targets; a target the model cannot reach is a
-    /// 422 `cohort.target_unreachable` naming the reachable range.
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
-    #[schema(value_type = Object, example = json!({"volume_ml": {"min": 120, "max": 160}}))]
-    pub targets: BTreeMap<String, Target>,
-}
-
-/// A cohort with its acceptance report and members.
+/// A cohort with its status, acceptance report and (while it is small) its members.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct CohortView {
     /// Identifier.
     pub id: String,
     /// Model it was drawn from.
     pub model_id: String,
-    /// Number of members.
+    /// `queued` or `running` while the workers draw it, then `succeeded`, `failed` or
+    /// `cancelled`; a cohort answered with 201 is `succeeded` at once.
+    pub status: JobStatus,
+    /// Progress of the drawing (members drawn of `size`), for a cohort drawn by the workers.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub progress: Option<JobProgress>,
+    /// Why drawing failed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    /// Members asked for.
     pub size: usize,
+    /// Members drawn and stored (`size` once succeeded).
+    pub member_count: usize,
     /// Seed used.
     pub seed: u64,
     /// The request with defaults filled in.
-    #[schema(value_type = Object)]
+    #[schema(value_type = CohortRequest)]
     pub request: serde_json::Value,
-    /// `biomarkers.<name>`: reference statistics, intervals, synthetic statistics and
-    /// acceptance rates `{range, mode, mean}`; `acceptance`: joint rates over all biomarkers;
-    /// `clusters`: per cluster (atlas) `{cluster, count, share, acceptance, biomarkers}`.
-    #[schema(value_type = Object)]
-    pub report: serde_json::Value,
-    /// `{index, draw, cluster, biomarkers, accepted: {range, mode, mean},
-    /// nearest_training_mm, nearest_training_mesh_id, near_copy}` per member.
-    #[schema(value_type = Vec<Object>)]
-    pub members: Vec<serde_json::Value>,
+    /// The acceptance report, once drawn: `biomarkers.<name>` (reference statistics,
+    /// intervals, synthetic statistics, acceptance rates, spread against the training
+    /// set), `acceptance` (joint rates), `privacy`, `clusters`, `targets`.
+    #[schema(value_type = Option<crate::models::cohort::CohortReport>)]
+    pub report: Option<serde_json::Value>,
+    /// The members in order, inline while the cohort has at most the server's inline limit
+    /// (default 1,000); page through `/v1/cohorts/{id}/members` otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Vec<MemberSummary>>)]
+    pub members: Option<Vec<serde_json::Value>>,
     /// Creation time (RFC 3339, UTC).
     pub created_at: String,
+    /// When drawing ended (RFC 3339, UTC).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub finished_at: Option<String>,
 }
 
-impl From<CohortRecord> for CohortView {
-    fn from(r: CohortRecord) -> Self {
+impl CohortView {
+    /// The view of a record; `members` are listed when the record carries them.
+    pub fn new(r: CohortRecord, with_members: bool) -> Self {
         Self {
-            size: r.members.len(),
             seed: r
                 .request
                 .get("seed")
                 .and_then(serde_json::Value::as_u64)
                 .unwrap_or(0),
+            status: r.status,
+            progress: r.progress.filter(|_| r.job_id.is_some()),
+            error: r.error,
+            size: r.size,
+            member_count: r.member_count,
             id: r.id,
             model_id: r.model_id,
             request: r.request,
-            report: r.report,
-            members: r.members,
+            report: Some(r.report).filter(|v| !v.is_null()),
+            members: with_members.then_some(r.members),
             created_at: r.created_at,
+            finished_at: r.finished_at,
         }
     }
-}
-
-fn member_summary(m: &Member, training_ids: &[String]) -> serde_json::Value {
-    let biomarkers: serde_json::Map<String, serde_json::Value> = m
-        .biomarkers
-        .iter()
-        .map(|(name, value)| (name.to_owned(), value.into()))
-        .collect();
-    serde_json::json!({
-        "index": m.index,
-        "draw": m.draw,
-        "cluster": m.cluster,
-        "biomarkers": biomarkers,
-        "accepted": m.accepted,
-        "nearest_training_mm": m.nearest_training.distance_mm,
-        "nearest_training_mesh_id": training_ids.get(m.nearest_training.index),
-        "near_copy": m.near_copy,
-    })
 }
 
 fn check_target(name: &str, target: &Target) -> Result<(), ApiError> {
@@ -184,7 +141,7 @@ fn check_target(name: &str, target: &Target) -> Result<(), ApiError> {
     })
 }
 
-fn check_request(body: &CreateCohort) -> Result<(), ApiError> {
+fn check_request(body: &CohortRequest) -> Result<(), ApiError> {
     for (name, target) in &body.targets {
         check_target(name, target)?;
     }
@@ -223,187 +180,187 @@ fn cohort_failed(e: ModelError) -> ApiError {
     }
 }
 
+/// Whether the client asked for an asynchronous answer (RFC 7240 `Prefer: respond-async`).
+fn prefers_async(headers: &HeaderMap) -> bool {
+    headers
+        .get_all("prefer")
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(','))
+        .any(|p| p.split(';').next().unwrap_or("").trim() == "respond-async")
+}
+
+fn location(id: &str) -> HeaderMap {
+    let mut headers = HeaderMap::new();
+    if let Ok(location) = HeaderValue::from_str(&format!("/v1/cohorts/{id}")) {
+        headers.insert(header::LOCATION, location);
+    }
+    headers
+}
+
 /// Sample a virtual cohort from a model.
+///
+/// A cohort of at most the server's limit (default 1,000 members) is drawn inside the
+/// request and answered 201 with its members. A larger one, or any request sent with
+/// `Prefer: respond-async`, is queued for the workers and answered 202 with the cohort in
+/// status `queued`: poll `GET /v1/cohorts/{id}` (status, progress) until it is `succeeded`.
 #[utoipa::path(
     post, path = "/v1/models/{id}/cohorts", tag = "cohorts",
-    params(("id" = String, Path, description = "Model id")),
-    request_body = CreateCohort,
+    params(
+        ("id" = String, Path, description = "Model id"),
+        ("Prefer" = Option<String>, Header, description = "`respond-async` to have the cohort drawn by the workers whatever its size (RFC 7240)"),
+    ),
+    request_body = CohortRequest,
     responses(
-        (status = 201, description = "The cohort", body = CohortView, headers(("Location" = String, description = "URL of the cohort"))),
-        (status = 404, description = "No such model", body = Problem, content_type = "application/problem+json"),
-        (status = 409, description = "The model was stored in a format this release does not read (model.unsupported_version)", body = Problem, content_type = "application/problem+json"),
+        (status = 201, description = "The cohort, drawn", body = CohortView, headers(("Location" = String, description = "URL of the cohort"))),
+        (status = 202, description = "The cohort, queued for the workers", body = CohortView, headers(("Location" = String, description = "URL of the cohort"), ("Preference-Applied" = String, description = "`respond-async` when the header asked for it"))),
+        (status = 400, description = "The body is not JSON (`request.malformed_json`)", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "No such model (`model.not_found`)", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The model was stored in a format this release does not read (`model.unsupported_version`)", body = Problem, content_type = "application/problem+json"),
+        (status = 415, description = "The body is not sent as application/json (`request.unsupported_media_type`)", body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "Invalid field (`request.invalid_field`), too few accepted draws (`cohort.acceptance_unreachable`), or a target the model cannot reach (`cohort.target_unreachable`)", body = Problem, content_type = "application/problem+json"),
     )
 )]
 async fn create_cohort(
     State(state): State<AppState>,
     Path(model_id): Path<String>,
-    Json(body): Json<CreateCohort>,
+    headers: HeaderMap,
+    Json(body): Json<CohortRequest>,
 ) -> Result<(StatusCode, HeaderMap, Json<CohortView>), ApiError> {
     check_request(&body)?;
-    let (stored, reference) = load_model(&state, &model_id).await?;
-    let training_ids = state
-        .store
-        .model(&model_id)
-        .await?
-        .provenance
-        .training_mesh_ids;
-    let reference: ReferencePopulation = serde_json::from_value(reference)
-        .map_err(|e| ApiError::internal(format!("model {model_id} reference: {e}")))?;
-    let spec = CohortSpec {
-        size: body.size,
-        seed: body.seed,
-        sampling: body.sampling,
-        criterion: body.acceptance.criterion,
-        only_accepted: body.only_accepted,
-        exclude_near_copies: body.exclude_near_copies,
-        max_draws: body.size.saturating_mul(DRAWS_PER_MEMBER),
-    };
-    let targets: Vec<(String, Target)> = body.targets.clone().into_iter().collect();
-    let (members, report) = tokio::task::spawn_blocking(move || {
-        let shapes = stored.training.normalised_f64();
-        let training = TrainingIndex::new(&shapes, &stored.training.privacy)?;
-        let model = stored.model.as_ref();
-        let conditional = match targets.is_empty() {
-            true => None,
-            false => Some(Conditional::new(model, &targets, spec.seed)?),
-        };
-        sample_cohort_given(model, &reference, &training, &spec, conditional.as_ref())
-    })
-    .await
-    .map_err(|e| ApiError::internal(e.to_string()))?
-    .map_err(cohort_failed)?;
-    let report = serde_json::to_value(&report).map_err(|e| ApiError::internal(e.to_string()))?;
     let request = serde_json::to_value(&body).map_err(|e| ApiError::internal(e.to_string()))?;
-    let new_members = members
-        .iter()
-        .map(|m| NewMember {
-            index: m.index,
-            summary: member_summary(m, &training_ids),
-            mesh: m.mesh.clone(),
-        })
-        .collect();
+    let asked_async = prefers_async(&headers);
+    if asked_async || body.size > state.sync_cohort_max {
+        let id = state
+            .store
+            .queue_cohort(NewCohortJob {
+                model_id,
+                request,
+                size: body.size,
+                seed: body.seed,
+                max_attempts: MAX_ATTEMPTS,
+            })
+            .await?;
+        state.wake.notify_one();
+        let mut headers = location(&id);
+        if asked_async {
+            headers.insert(
+                "preference-applied",
+                HeaderValue::from_static("respond-async"),
+            );
+        }
+        let cohort = state.store.cohort_head(&id).await?;
+        return Ok((
+            StatusCode::ACCEPTED,
+            headers,
+            Json(CohortView::new(cohort, false)),
+        ));
+    }
+    let source = load_source(&state.store, &model_id)
+        .await
+        .map_err(|e| match e {
+            RunError::Model(e) => ApiError::unreadable_model(&model_id, e),
+            RunError::Store(e) => e.into(),
+            RunError::Invalid(e) => ApiError::internal(e),
+        })?;
+    let drawn = tokio::task::spawn_blocking(move || draw_cohort(&source, &body, &mut Silent))
+        .await
+        .map_err(|e| ApiError::internal(e.to_string()))?
+        .map_err(cohort_failed)?;
     let id = state
         .store
-        .insert_cohort(&model_id, request, report, new_members)
+        .insert_cohort(&model_id, request, drawn.report, drawn.members)
         .await?;
     let cohort = state.store.cohort(&id).await?;
-    let mut headers = HeaderMap::new();
-    if let Ok(location) = HeaderValue::from_str(&format!("/v1/cohorts/{id}")) {
-        headers.insert(header::LOCATION, location);
-    }
-    Ok((StatusCode::CREATED, headers, Json(cohort.into())))
+    Ok((
+        StatusCode::CREATED,
+        location(&id),
+        Json(CohortView::new(cohort, true)),
+    ))
 }
 
-/// Get a cohort with its report and members.
+/// Get a cohort: its status, report and counts, with its members inline while it is small.
 #[utoipa::path(
     get, path = "/v1/cohorts/{id}", tag = "cohorts",
     params(("id" = String, Path, description = "Cohort id")),
     responses(
         (status = 200, description = "The cohort", body = CohortView),
-        (status = 404, description = "No such cohort", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "No such cohort (`cohort.not_found`)", body = Problem, content_type = "application/problem+json"),
     )
 )]
 async fn get_cohort(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Json<CohortView>, ApiError> {
-    Ok(Json(state.store.cohort(&id).await?.into()))
+    let head = state.store.cohort_head(&id).await?;
+    let inline = head.status == JobStatus::Succeeded && head.member_count <= state.sync_cohort_max;
+    let record = match inline {
+        true => state.store.cohort(&id).await?,
+        false => head,
+    };
+    Ok(Json(CohortView::new(record, inline)))
 }
 
-/// Download one member's mesh.
+/// A page of a cohort's members, in order.
 #[utoipa::path(
-    get, path = "/v1/cohorts/{id}/members/{index}/file", tag = "cohorts",
-    params(("id" = String, Path, description = "Cohort id"), ("index" = i64, Path, description = "Member index, from 0"), FormatQuery),
+    get, path = "/v1/cohorts/{id}/members", tag = "cohorts",
+    params(("id" = String, Path, description = "Cohort id"), PageQuery),
     responses(
-        (status = 200, description = "The member's mesh", content(
-            (MeshFile = "model/obj"), (MeshFile = "model/stl"),
-            (MeshFile = "application/x-ply"), (MeshFile = "application/vnd.vtk"))),
-        (status = 404, description = "No such cohort or member", body = Problem, content_type = "application/problem+json"),
+        (status = 200, description = "A page of members", body = Paginated<MemberSummary>),
+        (status = 400, description = "Unreadable query (`request.invalid_query`)", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "No such cohort (`cohort.not_found`)", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The cohort is not drawn (`cohort.not_ready`, with its `cohort_status`)", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "limit or offset out of range (`request.invalid_field`)", body = Problem, content_type = "application/problem+json"),
     )
 )]
-async fn download_member(
-    State(state): State<AppState>,
-    Path((id, index)): Path<(String, i64)>,
-    Query(q): Query<FormatQuery>,
-) -> Result<Response, ApiError> {
-    let format = q.format()?;
-    let mesh = state.store.cohort_member_mesh(&id, index).await?;
-    let cohort: CohortView = state.store.cohort(&id).await?.into();
-    let bytes = mesh::io::write_with_provenance(&mesh, format, &provenance(&cohort, index));
-    Ok(mesh_file_response(
-        &format!("member_{index:05}"),
-        format,
-        bytes,
-    ))
-}
-
-/// The line kept inside member files (VTK's title line): where the member came from.
-fn provenance(cohort: &CohortView, index: i64) -> String {
-    format!(
-        "cohortforge member model={} cohort={} seed={} index={index}, coordinates in mm",
-        cohort.model_id, cohort.id, cohort.seed
-    )
-}
-
-/// Zip of every member (in the chosen format), `members.csv` and `report.json`.
-fn archive(
-    cohort: &CohortView,
-    meshes: &[mesh::Mesh],
-    format: mesh::Format,
-) -> Result<Vec<u8>, std::io::Error> {
-    let mut zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
-    let options = zip::write::SimpleFileOptions::default()
-        .compression_method(zip::CompressionMethod::Deflated)
-        .last_modified_time(zip::DateTime::default());
-    zip.start_file("report.json", options)?;
-    zip.write_all(&serde_json::to_vec_pretty(&serde_json::json!({
-        "model_id": cohort.model_id, "request": cohort.request,
-        "report": cohort.report, "members": cohort.members,
-    }))?)?;
-    zip.start_file("members.csv", options)?;
-    zip.write_all(members_csv(&cohort.members, format.extension()).as_bytes())?;
-    for (i, m) in meshes.iter().enumerate() {
-        zip.start_file(member_file_name(i, format.extension()), options)?;
-        let index = i64::try_from(i).unwrap_or(i64::MAX);
-        zip.write_all(&mesh::io::write_with_provenance(
-            m,
-            format,
-            &provenance(cohort, index),
-        ))?;
-    }
-    Ok(zip.finish()?.into_inner())
-}
-
-/// Download the whole cohort as a zip archive.
-#[utoipa::path(
-    get, path = "/v1/cohorts/{id}/archive", tag = "cohorts",
-    params(("id" = String, Path, description = "Cohort id"), FormatQuery),
-    responses(
-        (status = 200, description = "Zip of member meshes, members.csv and report.json", content((MeshFile = "application/zip"))),
-        (status = 404, description = "No such cohort", body = Problem, content_type = "application/problem+json"),
-    )
-)]
-async fn download_archive(
+async fn list_members(
     State(state): State<AppState>,
     Path(id): Path<String>,
-    Query(q): Query<FormatQuery>,
-) -> Result<Response, ApiError> {
-    let format = q.format()?;
-    let cohort: CohortView = state.store.cohort(&id).await?.into();
-    let meshes = state.store.cohort_meshes(&id).await?;
-    let bytes = tokio::task::spawn_blocking(move || archive(&cohort, &meshes, format))
-        .await
-        .map_err(|e| ApiError::internal(e.to_string()))?
-        .map_err(|e| ApiError::internal(e.to_string()))?;
-    let mut response = bytes.into_response();
-    let headers = response.headers_mut();
-    headers.insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static("application/zip"),
-    );
-    if let Ok(v) = HeaderValue::from_str(&format!("attachment; filename=\"cohort_{id}.zip\"")) {
-        headers.insert(header::CONTENT_DISPOSITION, v);
+    Query(q): Query<PageQuery>,
+) -> Result<Json<Paginated<MemberSummary>>, ApiError> {
+    let page = q.page()?;
+    let (values, total) = state.store.cohort_members(&id, page).await?;
+    let items = values
+        .into_iter()
+        .map(serde_json::from_value)
+        .collect::<Result<Vec<MemberSummary>, _>>()
+        .map_err(|e| ApiError::from(StoreError::Corrupt(format!("cohort member: {e}"))))?;
+    Ok(Json(Paginated::new(items, total, page)))
+}
+
+/// Cancel a cohort being drawn by the workers: a queued one at once, a running one after its
+/// current batch of draws. Nothing of a cancelled cohort's members is kept.
+#[utoipa::path(
+    post, path = "/v1/cohorts/{id}/cancel", tag = "cohorts",
+    params(("id" = String, Path, description = "Cohort id")),
+    responses(
+        (status = 202, description = "Cancellation requested (status `cancelled` when it was queued)", body = CohortView),
+        (status = 404, description = "No such cohort (`cohort.not_found`)", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The cohort is already drawn, failed or cancelled (`cohort.already_finished`)", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn cancel_cohort(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<(StatusCode, Json<CohortView>), ApiError> {
+    let head = state.store.cohort_head(&id).await?;
+    let finished = |status: &str| {
+        ApiError::new(
+            StatusCode::CONFLICT,
+            "cohort.already_finished",
+            format!("cohort {id} is already {status} and cannot be cancelled"),
+        )
+        .with("cohort_status", status.to_owned())
+    };
+    let job_id = match (&head.job_id, head.status.is_final()) {
+        (Some(job_id), false) => job_id.clone(),
+        _ => return Err(finished(head.status.as_str())),
+    };
+    match state.store.cancel_job(&job_id).await {
+        Ok(_) => {}
+        Err(StoreError::JobFinished { status, .. }) => return Err(finished(status)),
+        Err(e) => return Err(e.into()),
     }
-    Ok(response)
+    let cohort = state.store.cohort_head(&id).await?;
+    Ok((StatusCode::ACCEPTED, Json(CohortView::new(cohort, false))))
 }

@@ -218,6 +218,18 @@ impl From<StoreError> for ApiError {
                 "job.already_finished",
                 format!("job {id} is already {status} and cannot be cancelled"),
             ),
+            StoreError::CohortNotReady { ref id, status } => Self::new(
+                StatusCode::CONFLICT,
+                "cohort.not_ready",
+                match status {
+                    "queued" | "running" => format!(
+                        "cohort {id} is still {status}; poll GET /v1/cohorts/{id} until its \
+                         status is succeeded"
+                    ),
+                    _ => format!("cohort {id} ended {status} and has no members; see its error"),
+                },
+            )
+            .with("cohort_status", status),
             other => {
                 tracing::error!(error = %other, "storage failure");
                 Self::new(

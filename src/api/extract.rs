@@ -40,8 +40,10 @@ pub const MAX_LIMIT: i64 = 500;
 #[serde(deny_unknown_fields)]
 pub struct PageQuery {
     /// Items per page (1–500, default 50).
+    #[param(minimum = 1, maximum = 500)]
     pub limit: Option<i64>,
     /// Items to skip (default 0).
+    #[param(minimum = 0)]
     pub offset: Option<i64>,
 }
 

@@ -13,7 +13,7 @@ use super::error::{ApiError, Problem};
 use super::extract::{Json, PageQuery, Paginated, Path, Query};
 use crate::jobs::split::holdout_split;
 use crate::models::{ModelError, ModelParams, ModelType};
-use crate::store::jobs::{Job, JobStatus, NewJob};
+use crate::store::jobs::{Job, JobKind, JobStatus, NewJob};
 
 /// Default share of meshes held out for evaluation.
 pub const DEFAULT_HOLDOUT_FRACTION: f64 = 0.2;
@@ -59,9 +59,13 @@ pub struct SubmitJob {
 pub struct JobsQuery {
     /// Only jobs with this status.
     pub status: Option<JobStatus>,
+    /// Only jobs of this kind: `fit`, or `cohort` (large cohorts drawn by the workers).
+    pub kind: Option<JobKind>,
     /// Items per page (1–500, default 50).
+    #[param(minimum = 1, maximum = 500)]
     pub limit: Option<i64>,
-    /// Items to skip.
+    /// Items to skip (default 0).
+    #[param(minimum = 0)]
     pub offset: Option<i64>,
 }
 
@@ -224,7 +228,7 @@ async fn list_jobs(
         offset: q.offset,
     }
     .page()?;
-    let (items, total) = state.store.jobs(q.status, page).await?;
+    let (items, total) = state.store.jobs(q.status, q.kind, page).await?;
     Ok(Json(Paginated::new(items, total, page)))
 }
 

@@ -4,6 +4,7 @@
 //! documentation cannot drift apart.
 
 pub mod auth;
+mod cohort_files;
 mod cohorts;
 mod datasets;
 pub mod error;
@@ -13,6 +14,7 @@ pub mod extract;
 mod jobs;
 mod meshes;
 mod models;
+mod octet;
 mod ops;
 mod plots;
 mod renders;
@@ -56,6 +58,8 @@ pub struct AppState {
     pub max_vertices: usize,
     /// Notified when a job is queued, so idle workers start at once.
     pub wake: Arc<Notify>,
+    /// Largest cohort drawn inside its request and listed inline.
+    pub sync_cohort_max: usize,
 }
 
 impl AppState {
@@ -69,6 +73,7 @@ impl AppState {
             }),
             max_vertices: config.max_vertices,
             wake,
+            sync_cohort_max: config.sync_cohort_max,
         }
     }
 
@@ -137,10 +142,11 @@ fn api_routes() -> (OpenApiRouter<AppState>, OpenApiRouter<AppState>) {
 /// The OpenAPI document of the service.
 pub fn openapi() -> utoipa::openapi::OpenApi {
     let (v1, ops) = api_routes();
-    let (_, spec) = OpenApiRouter::<AppState>::with_openapi(ApiDoc::openapi())
+    let (_, mut spec) = OpenApiRouter::<AppState>::with_openapi(ApiDoc::openapi())
         .merge(v1)
         .merge(ops)
         .split_for_parts();
+    octet::declare_octet_stream(&mut spec);
     spec
 }
 
@@ -151,16 +157,18 @@ pub fn app(state: AppState, max_body_bytes: usize) -> Router {
         state.clone(),
         auth::require_token,
     ));
-    let (router, spec) = OpenApiRouter::with_openapi(ApiDoc::openapi())
+    let (router, mut spec) = OpenApiRouter::with_openapi(ApiDoc::openapi())
         .merge(v1)
         .merge(ops)
         .split_for_parts();
+    octet::declare_octet_stream(&mut spec);
     let request_id = HeaderName::from_static(REQUEST_ID_HEADER);
     router
         .merge(SwaggerUi::new("/docs").url("/openapi.json", spec))
         .fallback(|| async { ApiError::no_route() })
         .method_not_allowed_fallback(|| async { ApiError::method_not_allowed() })
         .with_state(state)
+        .layer(axum::middleware::from_fn(octet::octet_stream_when_preferred))
         .layer(DefaultBodyLimit::max(max_body_bytes))
         .layer(PropagateRequestIdLayer::new(request_id.clone()))
         .layer(

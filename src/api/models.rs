@@ -45,8 +45,8 @@ pub struct ModelView {
     pub job_id: String,
     /// Training and held-out meshes with their checksums.
     pub provenance: Provenance,
-    /// The first atlas (template): `{index, vertex_count, face_count, euler_characteristic}`.
-    #[schema(value_type = Object)]
+    /// The first atlas (template).
+    #[schema(value_type = crate::models::AtlasInfo)]
     pub atlas: serde_json::Value,
     /// Every atlas (one for single-atlas models), each with its own connectivity.
     pub atlases: Vec<AtlasView>,
@@ -56,7 +56,7 @@ pub struct ModelView {
     pub clusters: ClustersView,
     /// Quality in mm: `generalisation`, `specificity`, `matching`, each `{hd, ed, ed_star, cd}`
     /// of `{mean, std}`; generalisation and matching on the held-out meshes.
-    #[schema(value_type = Object)]
+    #[schema(value_type = crate::models::Evaluation)]
     pub evaluation: serde_json::Value,
     /// Cumulative explained variance per mode (PCA models).
     #[schema(value_type = Option<Vec<f64>>)]
@@ -70,8 +70,8 @@ pub struct ModelView {
     /// Held-out meshes evaluated.
     #[schema(value_type = u64)]
     pub holdout_count: serde_json::Value,
-    /// Seconds per stage of the fit: `[{stage, seconds}]`.
-    #[schema(value_type = Vec<Object>)]
+    /// Seconds per stage of the fit.
+    #[schema(value_type = Vec<crate::models::StageTiming>)]
     pub timings: serde_json::Value,
     /// Creation time (RFC 3339, UTC).
     pub created_at: String,

@@ -24,7 +24,7 @@ use crate::models::cohort::{
     CohortSpec, Criterion, TrainingIndex, sample_cohort, sample_cohort_given,
 };
 use crate::models::evaluation::evaluate;
-use crate::models::progress::Stages;
+use crate::models::progress::{Silent, Stages};
 use crate::models::{ModelError, ReferencePopulation, ShapeModel};
 
 /// Added to the bench seed for the fresh phantoms of the fidelity check, so that they are
@@ -367,7 +367,7 @@ fn bench_conditional<M: ShapeModel + Sync + ?Sized>(
     let started = Instant::now();
     let drawn = Conditional::new(model, &targets, spec.seed).and_then(|c| {
         let index = TrainingIndex::new(normalised, privacy)?;
-        sample_cohort_given(model, reference, &index, &spec, Some(&c))
+        sample_cohort_given(model, reference, &index, &spec, Some(&c), &mut Silent)
     });
     let mean_area = |m: &[crate::models::cohort::Member]| {
         m.iter().map(|m| m.biomarkers.area_cm2).sum::<f64>() / m.len().max(1) as f64

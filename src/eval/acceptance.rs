@@ -20,7 +20,7 @@ pub const MODE_INTERVAL_B: f64 = 3.0;
 pub const MEAN_INTERVAL_SD: f64 = 2.0;
 
 /// Statistics of a biomarker in the reference (training) population.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct ReferenceStats {
     /// Number of reference values.
     pub n: usize,
@@ -78,7 +78,7 @@ impl ReferenceStats {
 }
 
 /// Acceptance intervals `[low, high]` (inclusive) of one biomarker.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct Intervals {
     /// `[min, max]` of the reference (A^r).
     pub range: [f64; 2],
@@ -89,7 +89,7 @@ pub struct Intervals {
 }
 
 /// Whether one value lies in each interval.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct Flags {
     /// Inside `[min, max]`.
     pub range: bool,
@@ -112,7 +112,7 @@ impl Flags {
 
 /// Acceptance rates A^r, A^M, A^μ as fractions in `[0, 1]` over `n` members (all 0 when
 /// `n = 0`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct Rates {
     /// Members assessed.
     pub n: usize,

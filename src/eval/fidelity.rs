@@ -46,7 +46,7 @@ impl Fidelity {
 
 /// How a synthetic sample of a biomarker spreads against the training population's values:
 /// the two means and sds, their ratios, and the two-sample KS statistic.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct Spread {
     /// Mean of the synthetic values.
     pub synthetic_mean: f64,

@@ -11,7 +11,7 @@ use crate::geometry::distance::{SurfaceDistances, directed, surface_distances_in
 use crate::geometry::kdtree::PointCloudIndex;
 
 /// Mean ± sd of each distance over a set of pairs (mm).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct DistanceSummary {
     /// Hausdorff distance.
     pub hd: MeanStd,

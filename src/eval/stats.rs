@@ -6,7 +6,7 @@ use super::EvalError;
 use super::error::check_values;
 
 /// Mean and sample standard deviation (`n − 1`; 0 for a single value).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct MeanStd {
     /// Arithmetic mean.
     pub mean: f64,
@@ -26,7 +26,7 @@ impl MeanStd {
 }
 
 /// Summary of a synthetic (or any) sample of a biomarker.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct SummaryStats {
     /// Number of values.
     pub n: usize,

@@ -8,7 +8,7 @@ use super::bvh::TriangleBvh;
 use super::kdtree::PointCloudIndex;
 
 /// Distances between a shape `g` and a shape `g'`, in mm.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct SurfaceDistances {
     /// Symmetric Hausdorff distance `HD(g, g')`.
     pub hd: f64,

@@ -63,7 +63,7 @@ impl PcaParams {
 }
 
 /// How shape coefficients `bᵢ` are drawn.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum Sampling {
     /// `bᵢ ~ N(0, λᵢ)`, clipped to `±3√λᵢ`.

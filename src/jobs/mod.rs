@@ -1,5 +1,6 @@
-//! Durable fit jobs: validation at submission, the worker pool, and the run of one job.
+//! Durable jobs (fits and large cohorts): the worker pool and the run of one job.
 
+pub mod cohort;
 pub mod fit;
 pub mod run;
 pub mod split;

@@ -2,12 +2,13 @@
 
 use tokio::runtime::Handle;
 
+use super::cohort::{DrawnCohort, run_cohort_job};
 use super::fit::fit_model;
 use super::split::holdout_split;
 use crate::mesh::Mesh;
 use crate::models::progress::Progress;
 use crate::models::{FitOutcome, ModelError, ModelType};
-use crate::store::jobs::Job;
+use crate::store::jobs::{Job, JobKind};
 use crate::store::models::{NewModel, Provenance};
 use crate::store::{Store, StoreError};
 
@@ -83,8 +84,32 @@ fn load_split(
     })
 }
 
-/// Fits the model of `job`; blocking, to be called on a worker thread.
+/// What a job produced, to be stored with its completion.
+#[derive(Debug)]
+pub enum JobOutput {
+    /// A fitted model.
+    Model(Box<NewModel>),
+    /// A drawn cohort.
+    Cohort(DrawnCohort),
+}
+
+/// Runs `job` (a fit or a cohort); blocking, to be called on a worker thread.
 pub fn run_job(
+    handle: &Handle,
+    store: &Store,
+    job: &Job,
+    progress: &mut dyn Progress,
+) -> Result<JobOutput, RunError> {
+    match job.kind {
+        JobKind::Fit => {
+            run_fit_job(handle, store, job, progress).map(|m| JobOutput::Model(Box::new(m)))
+        }
+        JobKind::Cohort => run_cohort_job(handle, store, job, progress).map(JobOutput::Cohort),
+    }
+}
+
+/// Fits the model of `job`.
+fn run_fit_job(
     handle: &Handle,
     store: &Store,
     job: &Job,

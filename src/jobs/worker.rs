@@ -11,7 +11,7 @@ use tokio::runtime::Handle;
 use tokio::sync::Notify;
 use tokio_util::sync::CancellationToken;
 
-use super::run::{RunError, run_job};
+use super::run::{JobOutput, RunError, run_job};
 use crate::models::ModelError;
 use crate::models::progress::{Cancelled, Progress, ProgressUpdate};
 use crate::store::Store;
@@ -129,7 +129,7 @@ impl Worker {
     }
 
     fn execute(&self, job: Job) {
-        let span = tracing::info_span!("job", job_id = %job.id, model_type = %job.model_type);
+        let span = tracing::info_span!("job", job_id = %job.id, kind = job.kind.as_str(), model_type = %job.model_type);
         let _entered = span.enter();
         tracing::info!(attempt = job.attempts, "job started");
         let shared = Arc::new(Mutex::new(job.progress.clone()));
@@ -156,10 +156,7 @@ impl Worker {
             )
         };
         let written = match outcome {
-            Ok(Ok(model)) => self
-                .handle
-                .block_on(self.store.complete_job(&job.id, &self.id, model))
-                .map(|m| m.is_some()),
+            Ok(Ok(output)) => self.complete(&job, output),
             Ok(Err(RunError::Model(ModelError::Cancelled(_))))
                 if flags.shutdown.load(Ordering::SeqCst) =>
             {
@@ -176,10 +173,10 @@ impl Worker {
                     .cloned()
                     .or_else(|| panic.downcast_ref::<&str>().map(|s| (*s).to_owned()))
                     .unwrap_or_default();
-                tracing::error!(panic = %what, "fit panicked");
+                tracing::error!(panic = %what, "job panicked");
                 finish(
                     JobStatus::Failed,
-                    Some(format!("internal error during the fit: {what}")),
+                    Some(format!("internal error during the job: {what}")),
                 )
             }
         };
@@ -187,6 +184,41 @@ impl Worker {
             Ok(true) => tracing::info!("job ended"),
             Ok(false) => tracing::warn!("job ended after its lease was lost; result discarded"),
             Err(e) => tracing::error!(error = %e, "could not record the end of the job"),
+        }
+    }
+
+    /// Stores what a job produced; false when the lease was lost.
+    fn complete(&self, job: &Job, output: JobOutput) -> Result<bool, crate::store::StoreError> {
+        match (output, job.cohort_id.as_deref()) {
+            (JobOutput::Model(model), _) => self
+                .handle
+                .block_on(self.store.complete_job(&job.id, &self.id, *model))
+                .map(|m| m.is_some()),
+            (JobOutput::Cohort(drawn), Some(cohort_id)) => {
+                let stored = self.handle.block_on(self.store.complete_cohort_job(
+                    &job.id,
+                    &self.id,
+                    cohort_id,
+                    drawn.report,
+                    drawn.members,
+                ))?;
+                if stored {
+                    return Ok(true);
+                }
+                let error = "the cohort was deleted while it was drawn";
+                self.handle.block_on(self.store.finish_job(
+                    &job.id,
+                    &self.id,
+                    JobStatus::Failed,
+                    Some(error),
+                ))
+            }
+            (JobOutput::Cohort(_), None) => self.handle.block_on(self.store.finish_job(
+                &job.id,
+                &self.id,
+                JobStatus::Failed,
+                Some("a cohort job without a cohort"),
+            )),
         }
     }
 

@@ -12,7 +12,7 @@ use crate::eval::acceptance::{Intervals, Rates, joint_acceptance_rates};
 use crate::eval::stats::SummaryStats;
 
 /// One cluster's members in a cohort report.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct ClusterReport {
     /// The cluster (atlas index).
     pub cluster: usize,

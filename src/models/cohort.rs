@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use super::clusters::{ClusterReport, cluster_reports};
 use super::conditional::Conditional;
+use super::progress::{Progress, ProgressUpdate, Silent};
 pub use super::targets_report::TargetsReport;
 use super::{ModelError, ReferencePopulation, ShapeModel};
 use crate::eval::Biomarkers;
@@ -21,7 +22,7 @@ use crate::geometry::pca::Sampling;
 use crate::mesh::Mesh;
 
 /// Acceptance criterion that decides whether a member is kept with `only_accepted`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum Criterion {
     /// Inside the training range `[min, max]` (A^r).
@@ -93,7 +94,7 @@ pub struct Member {
 }
 
 /// Statistics of one biomarker in a cohort report.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct BiomarkerReport {
     /// Unit, e.g. `ml`.
     pub unit: String,
@@ -112,7 +113,7 @@ pub struct BiomarkerReport {
 }
 
 /// The acceptance report of a cohort.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct CohortReport {
     /// Per biomarker, by name.
     pub biomarkers: BTreeMap<String, BiomarkerReport>,
@@ -141,7 +142,7 @@ pub struct CohortReport {
 }
 
 /// Privacy part of a cohort report.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct PrivacyReport {
     /// Members nearer than this (mm) to a training shape are near copies (atlas 0's
     /// threshold; see `thresholds_mm` for each atlas).
@@ -179,8 +180,11 @@ fn joint_flags(intervals: &[Intervals], biomarkers: &Biomarkers) -> Flags {
         .fold(all, |acc, (iv, v)| acc.and(iv.accepted(v)))
 }
 
-/// Draws evaluated together (in parallel, then taken in draw order).
+/// Fewest draws evaluated together (in parallel, then taken in draw order).
 const DRAW_BATCH: u64 = 32;
+/// Most draws evaluated together: progress is reported (and cancellation checked) between
+/// batches. The batch size never changes which members are drawn.
+const MAX_DRAW_BATCH: u64 = 1024;
 
 /// One draw evaluated.
 struct Evaluated {
@@ -270,18 +274,20 @@ pub fn sample_cohort<M: ShapeModel + Sync + ?Sized>(
     training: &TrainingIndex<'_>,
     spec: &CohortSpec,
 ) -> Result<(Vec<Member>, CohortReport), ModelError> {
-    sample_cohort_given(model, reference, training, spec, None)
+    sample_cohort_given(model, reference, training, spec, None, &mut Silent)
 }
 
 /// Draws a cohort whose members meet the targets of `conditional` (drawn from the model's
 /// conditional Gaussian; members outside an interval target are drawn again), or a plain
-/// cohort without it.
+/// cohort without it. Progress is reported to `progress` after every batch of draws, which
+/// may stop the sampling with [`ModelError::Cancelled`].
 pub fn sample_cohort_given<M: ShapeModel + Sync + ?Sized>(
     model: &M,
     reference: &ReferencePopulation,
     training: &TrainingIndex<'_>,
     spec: &CohortSpec,
     conditional: Option<&Conditional>,
+    progress: &mut dyn Progress,
 ) -> Result<(Vec<Member>, CohortReport), ModelError> {
     let intervals = reference.intervals();
     let plausible = reference.plausible_ranges();
@@ -299,7 +305,8 @@ pub fn sample_cohort_given<M: ShapeModel + Sync + ?Sized>(
     let mut next = 0u64;
     while members.len() < spec.size && next < limit {
         let wanted = (spec.size - members.len()) as u64;
-        let batch: Vec<u64> = (next..limit.min(next + wanted.max(DRAW_BATCH))).collect();
+        let step = wanted.clamp(DRAW_BATCH, MAX_DRAW_BATCH);
+        let batch: Vec<u64> = (next..limit.min(next + step)).collect();
         let evaluated = parallel_map(&batch, |&d| {
             evaluate_draw(model, &intervals, training, spec, conditional, d)
         });
@@ -339,6 +346,18 @@ pub fn sample_cohort_given<M: ShapeModel + Sync + ?Sized>(
                 break;
             }
         }
+        progress.report(ProgressUpdate {
+            stage: "sampling",
+            step: members.len() as u64,
+            total: spec.size as u64,
+            fraction: members.len() as f64 / spec.size as f64,
+            message: format!(
+                "{} of {} members after {next} draws",
+                members.len(),
+                spec.size
+            ),
+            loss: None,
+        })?;
     }
     if let Some(c) = conditional
         && members.len() < spec.size

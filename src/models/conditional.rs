@@ -25,7 +25,7 @@ use crate::eval::Biomarkers;
 use crate::eval::normal::truncated;
 
 /// What a cohort asks of one biomarker.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(untagged, deny_unknown_fields)]
 pub enum Target {
     /// Members distributed as `N(mean, sd²)`.

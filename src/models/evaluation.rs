@@ -20,7 +20,7 @@ const SPECIFICITY_SEED_OFFSET: u64 = 0x5bec_1f1c;
 pub const VERTEX_TO_VERTEX: &str = "vertex-to-vertex";
 
 /// Quality of a fitted model.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct Evaluation {
     /// How distances are measured.
     pub distance: String,
@@ -41,7 +41,7 @@ pub struct Evaluation {
 }
 
 /// Metrics with point-to-surface distances, mm.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct SurfaceEvaluation {
     /// Reconstruction of each held-out mesh against the original.
     pub generalisation: Option<DistanceSummary>,
@@ -52,7 +52,7 @@ pub struct SurfaceEvaluation {
 }
 
 /// Per-item distances, in input order.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct PerItemDistances {
     /// One per held-out mesh.
     pub generalisation: Vec<SurfaceDistances>,

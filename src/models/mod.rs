@@ -195,7 +195,7 @@ impl TrainingShapes {
 }
 
 /// Atlas facts reported with a model.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct AtlasInfo {
     /// Position among the model's atlases.
     #[serde(default)]
@@ -222,7 +222,7 @@ impl AtlasInfo {
 }
 
 /// Time spent in one stage of the fit.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct StageTiming {
     /// Stage name.
     pub stage: String,

@@ -8,7 +8,7 @@ use crate::eval::Biomarkers;
 use crate::eval::stats::{mean, sample_sd};
 
 /// How the members meet one target.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct TargetReport {
     /// The biomarker's JSON name.
     pub biomarker: String,
@@ -28,7 +28,7 @@ pub struct TargetReport {
 }
 
 /// The targets of a cohort.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct TargetsReport {
     /// How members were drawn.
     pub method: String,

@@ -1,9 +1,10 @@
 //! Virtual cohorts: the request, the acceptance report and each member's geometry.
 
-use sqlx::Row;
 use sqlx::sqlite::SqliteRow;
+use sqlx::{AssertSqlSafe, Row, Sqlite, Transaction};
 
-use super::{Store, StoreError, new_id, now};
+use super::jobs::{JobProgress, JobStatus, queued_progress};
+use super::{Page, Store, StoreError, new_id, now};
 use crate::mesh::{Mesh, codec};
 
 /// A cohort member to store.
@@ -17,6 +18,21 @@ pub struct NewMember {
     pub mesh: Mesh,
 }
 
+/// A cohort to be drawn by the worker pool.
+#[derive(Debug, Clone)]
+pub struct NewCohortJob {
+    /// Model to draw from.
+    pub model_id: String,
+    /// The request with defaults filled in (JSON); the job's parameters.
+    pub request: serde_json::Value,
+    /// Members asked for.
+    pub size: usize,
+    /// Seed of the request.
+    pub seed: u64,
+    /// Times a worker may start the job before it is failed.
+    pub max_attempts: i64,
+}
+
 /// A stored cohort without member geometry.
 #[derive(Debug, Clone)]
 pub struct CohortRecord {
@@ -26,12 +42,99 @@ pub struct CohortRecord {
     pub model_id: String,
     /// The request with defaults filled in (JSON).
     pub request: serde_json::Value,
-    /// The acceptance report (JSON).
+    /// The acceptance report (JSON; null until the cohort is drawn).
     pub report: serde_json::Value,
-    /// Member summaries in order (JSON).
+    /// Member summaries in order (JSON): all of them from [`Store::cohort`], none from
+    /// [`Store::cohort_head`].
     pub members: Vec<serde_json::Value>,
+    /// Members stored.
+    pub member_count: usize,
+    /// Members asked for.
+    pub size: usize,
+    /// `succeeded` for a cohort drawn inside its request; its job's status otherwise.
+    pub status: JobStatus,
+    /// The job drawing it, for a cohort drawn by the worker pool.
+    pub job_id: Option<String>,
+    /// Progress of the drawing, for a cohort drawn by the worker pool.
+    pub progress: Option<JobProgress>,
+    /// Why drawing failed.
+    pub error: Option<String>,
     /// Creation time (RFC 3339, UTC).
     pub created_at: String,
+    /// When drawing ended (RFC 3339, UTC).
+    pub finished_at: Option<String>,
+}
+
+impl CohortRecord {
+    /// The record when its members are drawn, [`StoreError::CohortNotReady`] otherwise.
+    pub fn drawn(self) -> Result<Self, StoreError> {
+        match self.status {
+            JobStatus::Succeeded => Ok(self),
+            other => Err(StoreError::CohortNotReady {
+                id: self.id,
+                status: other.as_str(),
+            }),
+        }
+    }
+}
+
+const SELECT_COHORT: &str = "SELECT c.id, c.model_id, c.request, c.report, c.created_at, \
+     c.size, c.job_id, j.status AS job_status, j.progress, j.error, \
+     COALESCE(j.finished_at, c.created_at) AS finished_at, \
+     (SELECT COUNT(*) FROM cohort_members m WHERE m.cohort_id = c.id) AS member_count \
+     FROM cohorts c LEFT JOIN jobs j ON j.id = c.job_id";
+
+fn cohort_record(row: &SqliteRow) -> Result<CohortRecord, StoreError> {
+    let job_id: Option<String> = row.try_get("job_id")?;
+    let status = match row.try_get::<Option<String>, _>("job_status")? {
+        Some(s) => JobStatus::parse(&s)?,
+        None if job_id.is_some() => JobStatus::Failed,
+        None => JobStatus::Succeeded,
+    };
+    let progress = row
+        .try_get::<Option<String>, _>("progress")?
+        .map(|p| serde_json::from_str(&p))
+        .transpose()
+        .map_err(|e| StoreError::Corrupt(format!("jobs.progress: {e}")))?;
+    let member_count: i64 = row.try_get("member_count")?;
+    let size: Option<i64> = row.try_get("size")?;
+    Ok(CohortRecord {
+        id: row.try_get("id")?,
+        model_id: row.try_get("model_id")?,
+        request: json(row, "request")?,
+        report: json(row, "report")?,
+        members: Vec::new(),
+        member_count: member_count as usize,
+        size: size.map_or(member_count as usize, |s| s as usize),
+        finished_at: status
+            .is_final()
+            .then(|| row.try_get("finished_at"))
+            .transpose()?,
+        status,
+        job_id,
+        progress,
+        error: row.try_get("error")?,
+        created_at: row.try_get("created_at")?,
+    })
+}
+
+async fn insert_members(
+    tx: &mut Transaction<'_, Sqlite>,
+    cohort_id: &str,
+    members: Vec<NewMember>,
+) -> Result<(), StoreError> {
+    for member in members {
+        sqlx::query(
+            "INSERT INTO cohort_members (cohort_id, member, summary, geometry) VALUES (?, ?, ?, ?)",
+        )
+        .bind(cohort_id)
+        .bind(member.index as i64)
+        .bind(member.summary.to_string())
+        .bind(codec::encode(&member.mesh))
+        .execute(&mut **tx)
+        .await?;
+    }
+    Ok(())
 }
 
 fn json(row: &SqliteRow, column: &str) -> Result<serde_json::Value, StoreError> {
@@ -57,42 +160,112 @@ impl Store {
         if exists.is_none() {
             return Err(StoreError::not_found("model", model_id));
         }
+        let size = members.len() as i64;
         sqlx::query(
-            "INSERT INTO cohorts (id, model_id, request, report, created_at, seq) VALUES \
-             (?, ?, ?, ?, ?, (SELECT COALESCE(MAX(seq), 0) + 1 FROM cohorts))",
+            "INSERT INTO cohorts (id, model_id, request, report, created_at, size, seq) VALUES \
+             (?, ?, ?, ?, ?, ?, (SELECT COALESCE(MAX(seq), 0) + 1 FROM cohorts))",
         )
         .bind(&id)
         .bind(model_id)
         .bind(request.to_string())
         .bind(report.to_string())
         .bind(now())
+        .bind(size)
         .execute(&mut *tx)
         .await?;
-        for member in members {
-            sqlx::query(
-                "INSERT INTO cohort_members (cohort_id, member, summary, geometry) VALUES (?, ?, ?, ?)",
-            )
-            .bind(&id)
-            .bind(member.index as i64)
-            .bind(member.summary.to_string())
-            .bind(codec::encode(&member.mesh))
-            .execute(&mut *tx)
-            .await?;
-        }
+        insert_members(&mut tx, &id, members).await?;
         tx.commit().await?;
         Ok(id)
     }
 
-    /// A cohort with its report and member summaries.
-    pub async fn cohort(&self, id: &str) -> Result<CohortRecord, StoreError> {
-        let row = sqlx::query(
-            "SELECT id, model_id, request, report, created_at FROM cohorts WHERE id = ?",
+    /// Creates a cohort to be drawn by the worker pool and queues its job, atomically.
+    /// Returns the cohort's id.
+    pub async fn queue_cohort(&self, new: NewCohortJob) -> Result<String, StoreError> {
+        let mut tx = self.write.begin().await?;
+        let model = sqlx::query("SELECT dataset_id, model_type FROM models WHERE id = ?")
+            .bind(&new.model_id)
+            .fetch_optional(&mut *tx)
+            .await?
+            .ok_or_else(|| StoreError::not_found("model", &new.model_id))?;
+        let (id, job_id) = (new_id(), new_id());
+        sqlx::query(
+            "INSERT INTO jobs (id, kind, dataset_id, model_type, params, seed, holdout_fraction, \
+             status, progress, model_id, cohort_id, max_attempts, request_hash, created_at, seq) \
+             VALUES (?, 'cohort', ?, ?, ?, ?, 0, 'queued', ?, ?, ?, ?, '', ?, \
+             (SELECT COALESCE(MAX(seq), 0) + 1 FROM jobs))",
         )
-        .bind(id)
-        .fetch_optional(&self.read)
+        .bind(&job_id)
+        .bind(model.try_get::<String, _>("dataset_id")?)
+        .bind(model.try_get::<String, _>("model_type")?)
+        .bind(new.request.to_string())
+        .bind(new.seed as i64)
+        .bind(queued_progress()?)
+        .bind(&new.model_id)
+        .bind(&id)
+        .bind(new.max_attempts)
+        .bind(now())
+        .execute(&mut *tx)
+        .await?;
+        sqlx::query(
+            "INSERT INTO cohorts (id, model_id, request, report, created_at, size, job_id, seq) \
+             VALUES (?, ?, ?, 'null', ?, ?, ?, (SELECT COALESCE(MAX(seq), 0) + 1 FROM cohorts))",
+        )
+        .bind(&id)
+        .bind(&new.model_id)
+        .bind(new.request.to_string())
+        .bind(now())
+        .bind(new.size as i64)
+        .bind(&job_id)
+        .execute(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok(id)
+    }
+
+    /// Ends a cohort job held by `worker` with its drawn members, atomically. Returns false
+    /// when the lease was lost or the cohort was deleted meanwhile (nothing is written).
+    pub async fn complete_cohort_job(
+        &self,
+        job_id: &str,
+        worker: &str,
+        cohort_id: &str,
+        report: serde_json::Value,
+        members: Vec<NewMember>,
+    ) -> Result<bool, StoreError> {
+        let mut tx = self.write.begin().await?;
+        let held = sqlx::query(
+            "UPDATE jobs SET status = 'succeeded', finished_at = ?, lease_owner = NULL, \
+             lease_expires_at = NULL, \
+             progress = json_set(progress, '$.fraction', 1.0, '$.stage', 'done', \
+                                 '$.message', 'cohort stored') \
+             WHERE id = ? AND lease_owner = ? AND status = 'running'",
+        )
+        .bind(now())
+        .bind(job_id)
+        .bind(worker)
+        .execute(&mut *tx)
         .await?
-        .ok_or_else(|| StoreError::not_found("cohort", id))?;
-        let members =
+        .rows_affected();
+        let cohort = sqlx::query("UPDATE cohorts SET report = ? WHERE id = ? AND job_id = ?")
+            .bind(report.to_string())
+            .bind(cohort_id)
+            .bind(job_id)
+            .execute(&mut *tx)
+            .await?
+            .rows_affected();
+        if held == 0 || cohort == 0 {
+            return Ok(false);
+        }
+        insert_members(&mut tx, cohort_id, members).await?;
+        tx.commit().await?;
+        Ok(true)
+    }
+
+    /// A drawn cohort with its report and every member summary;
+    /// [`StoreError::CohortNotReady`] while it is not drawn.
+    pub async fn cohort(&self, id: &str) -> Result<CohortRecord, StoreError> {
+        let mut record = self.cohort_head(id).await?.drawn()?;
+        record.members =
             sqlx::query("SELECT summary FROM cohort_members WHERE cohort_id = ? ORDER BY member")
                 .bind(id)
                 .fetch_all(&self.read)
@@ -100,14 +273,39 @@ impl Store {
                 .iter()
                 .map(|r| json(r, "summary"))
                 .collect::<Result<_, _>>()?;
-        Ok(CohortRecord {
-            id: row.try_get("id")?,
-            model_id: row.try_get("model_id")?,
-            request: json(&row, "request")?,
-            report: json(&row, "report")?,
-            members,
-            created_at: row.try_get("created_at")?,
-        })
+        Ok(record)
+    }
+
+    /// A cohort with its report and status, without member summaries.
+    pub async fn cohort_head(&self, id: &str) -> Result<CohortRecord, StoreError> {
+        let row = sqlx::query(AssertSqlSafe(format!("{SELECT_COHORT} WHERE c.id = ?")))
+            .bind(id)
+            .fetch_optional(&self.read)
+            .await?
+            .ok_or_else(|| StoreError::not_found("cohort", id))?;
+        cohort_record(&row)
+    }
+
+    /// A page of a cohort's member summaries, in member order, with the number of members.
+    pub async fn cohort_members(
+        &self,
+        id: &str,
+        page: Page,
+    ) -> Result<(Vec<serde_json::Value>, i64), StoreError> {
+        let head = self.cohort_head(id).await?.drawn()?;
+        let items = sqlx::query(
+            "SELECT summary FROM cohort_members WHERE cohort_id = ? ORDER BY member \
+             LIMIT ? OFFSET ?",
+        )
+        .bind(id)
+        .bind(page.limit)
+        .bind(page.offset)
+        .fetch_all(&self.read)
+        .await?
+        .iter()
+        .map(|r| json(r, "summary"))
+        .collect::<Result<_, _>>()?;
+        Ok((items, head.member_count as i64))
     }
 
     /// One member's shape.
@@ -116,6 +314,7 @@ impl Store {
         cohort_id: &str,
         index: i64,
     ) -> Result<Mesh, StoreError> {
+        self.cohort_head(cohort_id).await?.drawn()?;
         let blob: Vec<u8> = sqlx::query_scalar(
             "SELECT geometry FROM cohort_members WHERE cohort_id = ? AND member = ?",
         )
@@ -129,6 +328,7 @@ impl Store {
 
     /// Every member's shape, in order.
     pub async fn cohort_meshes(&self, cohort_id: &str) -> Result<Vec<Mesh>, StoreError> {
+        self.cohort_head(cohort_id).await?.drawn()?;
         sqlx::query_scalar::<_, Vec<u8>>(
             "SELECT geometry FROM cohort_members WHERE cohort_id = ? ORDER BY member",
         )

@@ -33,6 +33,14 @@ pub enum StoreError {
         /// Its final status.
         status: &'static str,
     },
+    /// The cohort's members are not drawn (yet, or ever).
+    #[error("cohort {id} is {status}")]
+    CohortNotReady {
+        /// The cohort.
+        id: String,
+        /// Its status.
+        status: &'static str,
+    },
     /// A stored record could not be decoded: the database was changed outside the service.
     #[error("stored record is corrupt: {0}")]
     Corrupt(String),

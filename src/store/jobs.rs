@@ -41,7 +41,7 @@ impl JobStatus {
         }
     }
 
-    fn parse(s: &str) -> Result<Self, StoreError> {
+    pub(crate) fn parse(s: &str) -> Result<Self, StoreError> {
         Ok(match s {
             "queued" => Self::Queued,
             "running" => Self::Running,
@@ -55,6 +55,36 @@ impl JobStatus {
     /// Whether the job will not change any more.
     pub fn is_final(self) -> bool {
         matches!(self, Self::Succeeded | Self::Failed | Self::Cancelled)
+    }
+}
+
+/// What a job computes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum JobKind {
+    /// Fits a model to a dataset (`model_id` is the model it produced).
+    #[default]
+    Fit,
+    /// Draws a cohort from a model (`model_id` is the model drawn from, `cohort_id` the
+    /// cohort).
+    Cohort,
+}
+
+impl JobKind {
+    /// The kind as stored.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Fit => "fit",
+            Self::Cohort => "cohort",
+        }
+    }
+
+    fn parse(s: &str) -> Result<Self, StoreError> {
+        match s {
+            "fit" => Ok(Self::Fit),
+            "cohort" => Ok(Self::Cohort),
+            other => Err(StoreError::Corrupt(format!("job kind {other}"))),
+        }
     }
 }
 
@@ -80,6 +110,8 @@ pub struct JobProgress {
 pub struct Job {
     /// Identifier.
     pub id: String,
+    /// What the job computes: `fit` or `cohort`.
+    pub kind: JobKind,
     /// Dataset the model is fitted to.
     pub dataset_id: String,
     /// Model type, e.g. `rsmp`.
@@ -95,8 +127,11 @@ pub struct Job {
     pub status: JobStatus,
     /// Progress of the current stage.
     pub progress: JobProgress,
-    /// The model, once succeeded.
+    /// A fit's model, once succeeded; the model a cohort job draws from.
     pub model_id: Option<String>,
+    /// The cohort a cohort job draws.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cohort_id: Option<String>,
     /// Why the job failed.
     pub error: Option<String>,
     /// Times a worker started it.
@@ -141,8 +176,9 @@ pub enum Lease {
     Lost,
 }
 
-const SELECT_JOB: &str = "SELECT id, dataset_id, model_type, params, seed, holdout_fraction, \
-     status, progress, model_id, error, attempts, created_at, started_at, finished_at FROM jobs";
+const SELECT_JOB: &str = "SELECT id, kind, dataset_id, model_type, params, seed, \
+     holdout_fraction, status, progress, model_id, cohort_id, error, attempts, created_at, \
+     started_at, finished_at FROM jobs";
 
 fn corrupt(column: &str, e: impl std::fmt::Display) -> StoreError {
     StoreError::Corrupt(format!("jobs.{column}: {e}"))
@@ -154,6 +190,7 @@ fn job(row: &SqliteRow) -> Result<Job, StoreError> {
     let seed: i64 = row.try_get("seed")?;
     Ok(Job {
         id: row.try_get("id")?,
+        kind: JobKind::parse(&row.try_get::<String, _>("kind")?)?,
         dataset_id: row.try_get("dataset_id")?,
         model_type: row.try_get("model_type")?,
         params: serde_json::from_str(&params).map_err(|e| corrupt("params", e))?,
@@ -162,12 +199,23 @@ fn job(row: &SqliteRow) -> Result<Job, StoreError> {
         status: JobStatus::parse(&row.try_get::<String, _>("status")?)?,
         progress: serde_json::from_str(&progress).map_err(|e| corrupt("progress", e))?,
         model_id: row.try_get("model_id")?,
+        cohort_id: row.try_get("cohort_id")?,
         error: row.try_get("error")?,
         attempts: row.try_get("attempts")?,
         created_at: row.try_get("created_at")?,
         started_at: row.try_get("started_at")?,
         finished_at: row.try_get("finished_at")?,
     })
+}
+
+/// The progress of a job waiting for a worker, as stored.
+pub(super) fn queued_progress() -> Result<String, StoreError> {
+    serde_json::to_string(&JobProgress {
+        stage: "queued".into(),
+        message: "waiting for a worker".into(),
+        ..JobProgress::default()
+    })
+    .map_err(|e| corrupt("progress", e))
 }
 
 /// Unix time in milliseconds.
@@ -197,12 +245,7 @@ impl Store {
             }
         }
         let id = new_id();
-        let progress = serde_json::to_string(&JobProgress {
-            stage: "queued".into(),
-            message: "waiting for a worker".into(),
-            ..JobProgress::default()
-        })
-        .map_err(|e| corrupt("progress", e))?;
+        let progress = queued_progress()?;
         sqlx::query(
             "INSERT INTO jobs (id, dataset_id, model_type, params, seed, holdout_fraction, status, \
              progress, max_attempts, idempotency_key, request_hash, created_at, seq) \
@@ -236,24 +279,29 @@ impl Store {
         job(&row)
     }
 
-    /// A page of jobs, newest first, optionally of one status.
+    /// A page of jobs, newest first, optionally of one status and of one kind.
     pub async fn jobs(
         &self,
         status: Option<JobStatus>,
+        kind: Option<JobKind>,
         page: Page,
     ) -> Result<(Vec<Job>, i64), StoreError> {
         let filter = status.map(JobStatus::as_str);
+        let kind = kind.map(JobKind::as_str);
+        const WHERE: &str = "WHERE (?1 IS NULL OR status = ?1) AND (?2 IS NULL OR kind = ?2)";
         let rows = sqlx::query(AssertSqlSafe(format!(
-            "{SELECT_JOB} WHERE (?1 IS NULL OR status = ?1) ORDER BY seq DESC LIMIT ?2 OFFSET ?3"
+            "{SELECT_JOB} {WHERE} ORDER BY seq DESC LIMIT ?3 OFFSET ?4"
         )))
         .bind(filter)
+        .bind(kind)
         .bind(page.limit)
         .bind(page.offset)
         .fetch_all(&self.read)
         .await?;
         let total: i64 =
-            sqlx::query_scalar("SELECT COUNT(*) FROM jobs WHERE (?1 IS NULL OR status = ?1)")
+            sqlx::query_scalar(AssertSqlSafe(format!("SELECT COUNT(*) FROM jobs {WHERE}")))
                 .bind(filter)
+                .bind(kind)
                 .fetch_one(&self.read)
                 .await?;
         Ok((rows.iter().map(job).collect::<Result<_, _>>()?, total))

@@ -365,6 +365,7 @@ async fn invalid_submissions_name_the_field() {
         .store
         .jobs(
             None,
+            None,
             cohortforge::store::Page {
                 limit: 10,
                 offset: 0,

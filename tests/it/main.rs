@@ -6,6 +6,7 @@ mod atlas_r_asmg;
 mod auth;
 mod bad_uploads;
 mod cli;
+mod cohorts;
 mod datasets;
 mod jobs;
 mod kits19;

@@ -248,3 +248,89 @@ async fn deleting_meshes_and_datasets() {
         .await;
     expect_problem(upload, StatusCode::NOT_FOUND, "dataset.not_found").await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn concurrent_uploads_of_one_geometry_store_it_once() {
+    let s = TestServer::start().await;
+    let dataset = s.dataset("lv", "lv").await;
+    let bytes = io::write(&phantom::generate(Family::Lv, 1, 12)[0].mesh, Format::Stl);
+    let url = s.url(&format!("/v1/datasets/{dataset}/meshes?format=stl"));
+    let mut uploads = tokio::task::JoinSet::new();
+    for _ in 0..8 {
+        let request = s.client.post(&url).body(bytes.clone());
+        uploads.spawn(async move { request.send().await.unwrap() });
+    }
+    let responses = uploads.join_all().await;
+    let statuses: Vec<StatusCode> = responses.iter().map(|r| r.status()).collect();
+    assert_eq!(
+        statuses
+            .iter()
+            .filter(|s| **s == StatusCode::CREATED)
+            .count(),
+        1,
+        "{statuses:?}"
+    );
+    for response in responses {
+        if response.status() != StatusCode::CREATED {
+            expect_problem(response, StatusCode::CONFLICT, "mesh.duplicate").await;
+        }
+    }
+    assert_eq!(s.mesh_count(&dataset).await, 1);
+}
+
+#[tokio::test]
+async fn octet_stream_uploads_and_downloads_for_generated_clients() {
+    let s = TestServer::start().await;
+    let dataset = s.dataset("lv", "lv").await;
+    let p = &phantom::generate(Family::Lv, 1, 13)[0];
+    let response = s
+        .client
+        .post(s.url(&format!("/v1/datasets/{dataset}/meshes?format=ply&name=lv")))
+        .header("content-type", "application/octet-stream")
+        .body(io::write(&p.mesh, Format::Ply))
+        .send()
+        .await
+        .unwrap();
+    let record = expect_json(response, StatusCode::CREATED).await;
+    assert_eq!(record["source_format"], "ply");
+    let url = s.url(&format!(
+        "/v1/meshes/{}/file?format=stl",
+        record["id"].as_str().unwrap()
+    ));
+    let download = |accept: &'static str| {
+        let request = s.client.get(&url).header("accept", accept);
+        async move { request.send().await.unwrap() }
+    };
+    let generic = download("application/octet-stream").await;
+    assert_eq!(generic.status(), StatusCode::OK);
+    assert_eq!(
+        generic.headers()["content-type"],
+        "application/octet-stream"
+    );
+    let native = download("model/stl, application/octet-stream;q=0.5").await;
+    assert_eq!(native.headers()["content-type"], "model/stl");
+    assert_eq!(
+        generic.bytes().await.unwrap(),
+        native.bytes().await.unwrap(),
+        "the same file whatever its declared type"
+    );
+    // Errors stay problem+json.
+    let missing = s
+        .client
+        .get(s.url("/v1/meshes/none/file"))
+        .header("accept", "application/octet-stream")
+        .send()
+        .await
+        .unwrap();
+    expect_problem(missing, StatusCode::NOT_FOUND, "mesh.not_found").await;
+    // The document declares the generic type beside the mesh types.
+    let spec = expect_json(
+        s.client.get(s.url("/openapi.json")).send().await.unwrap(),
+        StatusCode::OK,
+    )
+    .await;
+    let content = &spec["paths"]["/v1/meshes/{id}/file"]["get"]["responses"]["200"]["content"];
+    assert!(content["application/octet-stream"].is_object(), "{content}");
+    let upload = &spec["paths"]["/v1/datasets/{id}/meshes"]["post"]["requestBody"]["content"];
+    assert!(upload["application/octet-stream"].is_object(), "{upload}");
+}

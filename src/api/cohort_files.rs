@@ -1,0 +1,128 @@
+//! A cohort's files: one member's mesh, or every member in a zip archive.
+
+use std::io::Write;
+
+use axum::extract::State;
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use utoipa_axum::router::OpenApiRouter;
+use utoipa_axum::routes;
+
+use super::AppState;
+use super::error::{ApiError, Problem};
+use super::extract::{Path, Query};
+use super::meshes::{MeshFile, mesh_file_response};
+use super::models::FormatQuery;
+use crate::mesh;
+use crate::report::exports::{member_file_name, members_csv};
+use crate::store::cohorts::CohortRecord;
+
+pub(super) fn router() -> OpenApiRouter<AppState> {
+    OpenApiRouter::new()
+        .routes(routes!(download_member))
+        .routes(routes!(download_archive))
+}
+
+/// Download one member's mesh.
+#[utoipa::path(
+    get, path = "/v1/cohorts/{id}/members/{index}/file", tag = "cohorts",
+    params(("id" = String, Path, description = "Cohort id"), ("index" = i64, Path, description = "Member index, from 0"), FormatQuery),
+    responses(
+        (status = 200, description = "The member's mesh", content(
+            (MeshFile = "model/obj"), (MeshFile = "model/stl"),
+            (MeshFile = "application/x-ply"), (MeshFile = "application/vnd.vtk"))),
+        (status = 404, description = "No such cohort or member", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The cohort is not drawn (`cohort.not_ready`)", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn download_member(
+    State(state): State<AppState>,
+    Path((id, index)): Path<(String, i64)>,
+    Query(q): Query<FormatQuery>,
+) -> Result<Response, ApiError> {
+    let format = q.format()?;
+    let mesh = state.store.cohort_member_mesh(&id, index).await?;
+    let cohort = state.store.cohort_head(&id).await?;
+    let bytes = mesh::io::write_with_provenance(&mesh, format, &provenance(&cohort, index));
+    Ok(mesh_file_response(
+        &format!("member_{index:05}"),
+        format,
+        bytes,
+    ))
+}
+
+/// The line kept inside member files (VTK's title line): where the member came from.
+fn provenance(cohort: &CohortRecord, index: i64) -> String {
+    let seed = cohort
+        .request
+        .get("seed")
+        .and_then(serde_json::Value::as_u64)
+        .unwrap_or(0);
+    format!(
+        "cohortforge member model={} cohort={} seed={seed} index={index}, coordinates in mm",
+        cohort.model_id, cohort.id
+    )
+}
+
+/// Zip of every member (in the chosen format), `members.csv` and `report.json`.
+fn archive(
+    cohort: &CohortRecord,
+    meshes: &[mesh::Mesh],
+    format: mesh::Format,
+) -> Result<Vec<u8>, std::io::Error> {
+    let mut zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    let options = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated)
+        .last_modified_time(zip::DateTime::default());
+    zip.start_file("report.json", options)?;
+    zip.write_all(&serde_json::to_vec_pretty(&serde_json::json!({
+        "model_id": cohort.model_id, "request": cohort.request,
+        "report": cohort.report, "members": cohort.members,
+    }))?)?;
+    zip.start_file("members.csv", options)?;
+    zip.write_all(members_csv(&cohort.members, format.extension()).as_bytes())?;
+    for (i, m) in meshes.iter().enumerate() {
+        zip.start_file(member_file_name(i, format.extension()), options)?;
+        let index = i64::try_from(i).unwrap_or(i64::MAX);
+        zip.write_all(&mesh::io::write_with_provenance(
+            m,
+            format,
+            &provenance(cohort, index),
+        ))?;
+    }
+    Ok(zip.finish()?.into_inner())
+}
+
+/// Download the whole cohort as a zip archive.
+#[utoipa::path(
+    get, path = "/v1/cohorts/{id}/archive", tag = "cohorts",
+    params(("id" = String, Path, description = "Cohort id"), FormatQuery),
+    responses(
+        (status = 200, description = "Zip of member meshes, members.csv and report.json", content((MeshFile = "application/zip"))),
+        (status = 404, description = "No such cohort", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The cohort is not drawn (`cohort.not_ready`)", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn download_archive(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    Query(q): Query<FormatQuery>,
+) -> Result<Response, ApiError> {
+    let format = q.format()?;
+    let cohort = state.store.cohort(&id).await?;
+    let meshes = state.store.cohort_meshes(&id).await?;
+    let bytes = tokio::task::spawn_blocking(move || archive(&cohort, &meshes, format))
+        .await
+        .map_err(|e| ApiError::internal(e.to_string()))?
+        .map_err(|e| ApiError::internal(e.to_string()))?;
+    let mut response = bytes.into_response();
+    let headers = response.headers_mut();
+    headers.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/zip"),
+    );
+    if let Ok(v) = HeaderValue::from_str(&format!("attachment; filename=\"cohort_{id}.zip\"")) {
+        headers.insert(header::CONTENT_DISPOSITION, v);
+    }
+    Ok(response)
+}
