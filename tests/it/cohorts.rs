@@ -3,32 +3,11 @@
 
 use std::time::{Duration, Instant};
 
-use cohortforge::mesh::phantom::Family;
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-use crate::jobs::{quick_params, upload_phantoms, wait_for};
+use crate::jobs::fitted_rsmp;
 use crate::support::{TestServer, expect_json, expect_problem};
-
-/// Fits a quick RSMP model to 10 LV phantoms and returns its id.
-async fn fitted_model(s: &TestServer) -> String {
-    let dataset = upload_phantoms(s, Family::Lv, 10, 5).await;
-    let body =
-        json!({"dataset_id": dataset, "model_type": "rsmp", "params": quick_params(), "seed": 1});
-    let job = expect_json(
-        s.client
-            .post(s.url("/v1/jobs"))
-            .json(&body)
-            .send()
-            .await
-            .unwrap(),
-        StatusCode::ACCEPTED,
-    )
-    .await;
-    let done = wait_for(s, job["id"].as_str().unwrap(), Duration::from_secs(600)).await;
-    assert_eq!(done["status"], "succeeded", "{done}");
-    done["model_id"].as_str().unwrap().to_owned()
-}
 
 async fn get(s: &TestServer, path: &str) -> reqwest::Response {
     s.client.get(s.url(path)).send().await.unwrap()
@@ -63,7 +42,7 @@ async fn member_obj(s: &TestServer, cohort: &str, index: usize) -> Vec<u8> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn large_cohorts_are_drawn_by_the_workers_and_paged() {
     let s = TestServer::start_with(|c| c.sync_cohort_max = 5).await;
-    let model = fitted_model(&s).await;
+    let model = fitted_rsmp(&s, 10, 0.2).await;
     let url = s.url(&format!("/v1/models/{model}/cohorts"));
 
     // Above the limit: 202, queued, no members yet, drawn by a worker.
@@ -155,7 +134,7 @@ async fn large_cohorts_are_drawn_by_the_workers_and_paged() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_cohort_is_cancelled_while_it_is_drawn() {
     let s = TestServer::start().await;
-    let model = fitted_model(&s).await;
+    let model = fitted_rsmp(&s, 10, 0.2).await;
     let url = s.url(&format!("/v1/models/{model}/cohorts"));
     // 10,000 members that pass every range and are no near copies keep the only worker
     // busy for several seconds (tens of thousands of draws).

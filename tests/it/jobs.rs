@@ -38,6 +38,17 @@ pub async fn upload_phantoms(s: &TestServer, family: Family, count: usize, seed:
     dataset
 }
 
+/// Fits a quick RSMP model to `count` LV phantoms (seed 5), holding out `holdout_fraction`
+/// of them, and returns the model's id.
+pub async fn fitted_rsmp(s: &TestServer, count: usize, holdout_fraction: f64) -> String {
+    let dataset = upload_phantoms(s, Family::Lv, count, 5).await;
+    let body = json!({"dataset_id": dataset, "model_type": "rsmp", "params": quick_params(), "seed": 2, "holdout_fraction": holdout_fraction});
+    let job = expect_json(submit(s, body).await, StatusCode::ACCEPTED).await;
+    let done = wait_for(s, job["id"].as_str().unwrap(), Duration::from_secs(900)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    done["model_id"].as_str().unwrap().to_owned()
+}
+
 async fn submit(s: &TestServer, body: Value) -> reqwest::Response {
     s.client
         .post(s.url("/v1/jobs"))

@@ -3,13 +3,11 @@
 
 use std::io::Read;
 use std::process::Command;
-use std::time::Duration;
 
-use cohortforge::mesh::phantom::Family;
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-use crate::jobs::{quick_params, upload_phantoms, wait_for};
+use crate::jobs::fitted_rsmp;
 use crate::support::{TestServer, expect_json, expect_problem};
 
 const PNG: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
@@ -33,24 +31,6 @@ async fn png(s: &TestServer, path: &str) -> Vec<u8> {
     );
     assert_eq!(body[..8], PNG, "{path}");
     body
-}
-
-async fn fitted_rsmp(s: &TestServer) -> String {
-    let dataset = upload_phantoms(s, Family::Lv, 16, 5).await;
-    let body = json!({"dataset_id": dataset, "model_type": "rsmp", "params": quick_params(), "seed": 2, "holdout_fraction": 0.25});
-    let job = expect_json(
-        s.client
-            .post(s.url("/v1/jobs"))
-            .json(&body)
-            .send()
-            .await
-            .unwrap(),
-        StatusCode::ACCEPTED,
-    )
-    .await;
-    let done = wait_for(s, job["id"].as_str().unwrap(), Duration::from_secs(900)).await;
-    assert_eq!(done["status"], "succeeded", "{done}");
-    done["model_id"].as_str().unwrap().to_owned()
 }
 
 async fn cohort(s: &TestServer, model: &str, body: Value, status: StatusCode) -> Value {
@@ -89,7 +69,7 @@ fn column(members: &Value, name: &str) -> Vec<f64> {
 #[tokio::test]
 async fn pictures_conditional_cohorts_and_tables() {
     let s = TestServer::start().await;
-    let model = fitted_rsmp(&s).await;
+    let model = fitted_rsmp(&s, 16, 0.25).await;
 
     // Pictures: deterministic PNGs, names listed on a 404, sizes checked.
     let atlas = png(&s, &format!("/v1/models/{model}/renders/atlas")).await;
