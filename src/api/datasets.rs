@@ -22,14 +22,24 @@ const MAX_ORGAN_CHARS: usize = 64;
 #[serde(deny_unknown_fields)]
 pub struct CreateDataset {
     /// Name of the dataset (1–200 characters).
-    #[schema(example = "lv-phantoms")]
+    #[schema(
+        example = "lv-phantoms",
+        min_length = 1,
+        max_length = 200,
+        pattern = r"^[^\x00-\x1f\x7f-\x9f]*[^\s\x00-\x1f\x7f-\x9f][^\x00-\x1f\x7f-\x9f]*$"
+    )]
     pub name: String,
     /// Organ the meshes show (1–64 characters), e.g. "lv", "liver", "kidney".
-    #[schema(example = "lv")]
+    #[schema(
+        example = "lv",
+        min_length = 1,
+        max_length = 64,
+        pattern = r"^[^\x00-\x1f\x7f-\x9f]*[^\s\x00-\x1f\x7f-\x9f][^\x00-\x1f\x7f-\x9f]*$"
+    )]
     pub organ: String,
     /// Simplify every uploaded mesh to about this many vertices unless the upload says
     /// otherwise (at least 8; none: keep meshes as uploaded).
-    #[schema(example = 2000)]
+    #[schema(example = 2000, minimum = 8, maximum = 1_000_000)]
     pub target_vertices: Option<i64>,
 }
 

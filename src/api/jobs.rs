@@ -99,13 +99,17 @@ fn idempotency_key(headers: &HeaderMap) -> Result<Option<String>, ApiError> {
     let Some(value) = headers.get("idempotency-key") else {
         return Ok(None);
     };
-    let key = value.to_str().map_err(|_| {
-        ApiError::new(
-            StatusCode::BAD_REQUEST,
-            "request.invalid_header",
-            "Idempotency-Key must be visible ASCII",
-        )
-    })?;
+    let key = value
+        .to_str()
+        .ok()
+        .filter(|k| k.bytes().all(|b| b.is_ascii_graphic()))
+        .ok_or_else(|| {
+            ApiError::new(
+                StatusCode::BAD_REQUEST,
+                "request.invalid_header",
+                "Idempotency-Key must be visible ASCII without spaces",
+            )
+        })?;
     if key.is_empty() || key.len() > MAX_IDEMPOTENCY_KEY {
         return Err(ApiError::new(
             StatusCode::BAD_REQUEST,
@@ -161,7 +165,7 @@ async fn check_dataset(
 #[utoipa::path(
     post, path = "/v1/jobs", tag = "jobs",
     request_body = SubmitJob,
-    params(("Idempotency-Key" = Option<String>, Header, description = "Retrying with the same key returns the same job")),
+    params(("Idempotency-Key" = Option<String>, Header, description = "Retrying with the same key returns the same job (1–200 visible ASCII characters)", min_length = 1, max_length = 200, pattern = r"^[\x21-\x7e]+$")),
     responses(
         (status = 202, description = "Queued (or the job already created with this Idempotency-Key)", body = Job,
          headers(("Location" = String, description = "URL of the job"))),

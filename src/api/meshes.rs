@@ -37,21 +37,33 @@ pub(super) fn router() -> OpenApiRouter<AppState> {
 pub struct UploadQuery {
     /// File format when the Content-Type does not say it: `obj`, `stl`, `ply`, `vtk`, or
     /// `nifti` for a NIfTI-1 label volume (`.nii` or gzip `.nii.gz`).
+    #[param(value_type = Option<super::vocabulary::UploadFormatName>, inline)]
     pub format: Option<String>,
-    /// Name of the mesh (raw uploads; multipart parts use their file names).
+    /// Name of the mesh (raw uploads; multipart parts use their file names; 1–200
+    /// characters, no control characters).
+    #[param(
+        min_length = 1,
+        max_length = 200,
+        pattern = r"^[^\x00-\x1f\x7f-\x9f]*[^\s\x00-\x1f\x7f-\x9f][^\x00-\x1f\x7f-\x9f]*$"
+    )]
     pub name: Option<String>,
     /// NIfTI: the label (default 1) or a comma-separated list of labels forming the structure.
+    #[param(pattern = r"^-?[0-9]+(,-?[0-9]+)*$")]
     pub label: Option<String>,
     /// NIfTI: `largest` (default) keeps the largest 6-connected part, `all` keeps every part.
+    #[param(value_type = Option<super::vocabulary::ComponentName>, inline)]
     pub component: Option<String>,
     /// NIfTI: fill cavities not connected to the outside (default true).
     pub fill_holes: Option<bool>,
     /// NIfTI: Gaussian smoothing in mm before the surface is extracted (default 1.0; 0: none).
+    #[param(minimum = 0.0, maximum = 20.0)]
     pub smooth_sigma_mm: Option<f64>,
     /// NIfTI: size of the isotropic voxels the surface is extracted from, mm (default 1.5).
+    #[param(minimum = 0.1, maximum = 20.0)]
     pub voxel_mm: Option<f64>,
     /// Simplify every mesh to about this many vertices by quadric edge collapse, keeping it
     /// closed (default: the dataset's `target_vertices`, else no simplification).
+    #[param(minimum = 8, maximum = 1_000_000)]
     pub target_vertices: Option<i64>,
 }
 
@@ -115,6 +127,7 @@ pub enum UploadResponse {
 #[serde(deny_unknown_fields)]
 pub struct DownloadQuery {
     /// Output format: `obj` (default), `stl` (binary), `ply` (binary) or `vtk` (legacy ASCII).
+    #[param(value_type = Option<super::vocabulary::MeshFormatName>, inline)]
     pub format: Option<String>,
 }
 

@@ -6,6 +6,7 @@
 pub mod auth;
 mod cohort_files;
 mod cohorts;
+mod common_responses;
 mod datasets;
 pub mod error;
 mod events;
@@ -20,6 +21,7 @@ mod plots;
 mod renders;
 mod reports;
 pub mod upload;
+mod vocabulary;
 
 use std::sync::Arc;
 
@@ -146,8 +148,15 @@ pub fn openapi() -> utoipa::openapi::OpenApi {
         .merge(v1)
         .merge(ops)
         .split_for_parts();
-    octet::declare_octet_stream(&mut spec);
+    finish_spec(&mut spec);
     spec
+}
+
+/// What the handlers' annotations leave out: octet-stream beside every binary type and the
+/// error responses whole classes of operations share.
+fn finish_spec(spec: &mut utoipa::openapi::OpenApi) {
+    octet::declare_octet_stream(spec);
+    common_responses::declare_common_responses(spec);
 }
 
 /// The complete HTTP application.
@@ -161,7 +170,7 @@ pub fn app(state: AppState, max_body_bytes: usize) -> Router {
         .merge(v1)
         .merge(ops)
         .split_for_parts();
-    octet::declare_octet_stream(&mut spec);
+    finish_spec(&mut spec);
     let request_id = HeaderName::from_static(REQUEST_ID_HEADER);
     router
         .merge(SwaggerUi::new("/docs").url("/openapi.json", spec))

@@ -286,6 +286,7 @@ async fn delete_model(
 #[serde(deny_unknown_fields)]
 pub struct FormatQuery {
     /// Output format: `obj` (default), `stl`, `ply` or `vtk`.
+    #[param(value_type = Option<super::vocabulary::MeshFormatName>, inline)]
     pub format: Option<String>,
 }
 

@@ -29,6 +29,7 @@ pub(super) fn router() -> OpenApiRouter<AppState> {
 pub struct PlotQuery {
     /// `svg` (default: the plot as on the page) or `png` (the same plot rasterised at its
     /// own size, 560 × 320 px, on white).
+    #[param(value_type = Option<super::vocabulary::PlotFormatName>, inline)]
     pub format: Option<String>,
 }
 

@@ -43,11 +43,13 @@ pub(super) fn router() -> OpenApiRouter<AppState> {
 pub struct RenderQuery {
     /// `anterior` (from −y), `lateral` (from +x) or `superior` (from +z); default: all
     /// three side by side (one view, anterior, for grids of modes and members).
+    #[param(value_type = Option<super::vocabulary::ViewName>, inline)]
     pub view: Option<String>,
     /// Side of each panel in px, 48–1024 (default 240).
     #[param(minimum = 48, maximum = 1024)]
     pub size: Option<u32>,
     /// Members of a grid: comma-separated indices (default the first 8; at most 32).
+    #[param(pattern = r"^[0-9]+(,[0-9]+)*$")]
     pub indices: Option<String>,
 }
 

@@ -37,14 +37,29 @@ pub struct NearestTraining {
 
 /// Mean distance (mm) between corresponding vertices of `a` and `b` (equal lengths).
 pub fn correspondence_distance(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
-    let sum: f64 = a
-        .iter()
-        .zip(b)
-        .map(|(p, q)| {
-            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
-        })
-        .sum();
+    let sum: f64 = a.iter().zip(b).map(|(p, q)| vertex_distance(p, q)).sum();
     sum / a.len().max(1) as f64
+}
+
+fn vertex_distance(p: &[f64; 3], q: &[f64; 3]) -> f64 {
+    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+}
+
+/// [`correspondence_distance`] of `a` and `b` (the same sum in the same order, so the same
+/// value), or `None` as soon as the running mean exceeds `bound`: the full mean would too.
+fn distance_below(a: &[[f64; 3]], b: &[[f64; 3]], bound: f64) -> Option<f64> {
+    let n = a.len().max(1) as f64;
+    let mut sum = 0.0;
+    for (ca, cb) in a.chunks(PRUNE_CHUNK).zip(b.chunks(PRUNE_CHUNK)) {
+        sum = ca
+            .iter()
+            .zip(cb)
+            .fold(sum, |acc, (p, q)| acc + vertex_distance(p, q));
+        if sum / n > bound {
+            return None;
+        }
+    }
+    Some(sum / n)
 }
 
 /// Value at `p` (0–1) of `values` by linear interpolation between order statistics.
@@ -64,7 +79,14 @@ pub fn percentile(values: &[f64], p: f64) -> Option<f64> {
 #[derive(Debug, Clone)]
 pub struct CorrespondedShapes<'a> {
     shapes: Vec<&'a [[f64; 3]]>,
+    /// Every `probe_stride`-th vertex: a coarse distance on these orders the search.
+    probe_stride: usize,
 }
+
+/// Vertices in a coarse probe of a shape (about; the stride is rounded).
+const PROBE_VERTICES: usize = 64;
+/// Vertices summed between two checks of the running sum against the best distance.
+const PRUNE_CHUNK: usize = 64;
 
 impl<'a> CorrespondedShapes<'a> {
     /// Fails without shapes or when vertex counts differ.
@@ -85,7 +107,11 @@ impl<'a> CorrespondedShapes<'a> {
                 found: other.len(),
             });
         }
-        Ok(Self { shapes })
+        let probe_stride = (n / PROBE_VERTICES).max(1);
+        Ok(Self {
+            shapes,
+            probe_stride,
+        })
     }
 
     /// Number of shapes.
@@ -99,6 +125,12 @@ impl<'a> CorrespondedShapes<'a> {
     }
 
     /// The training shape nearest to `shape` (same vertex count), ties to the lower index.
+    ///
+    /// The result is exactly that of comparing every training shape in full: shapes are
+    /// visited in the order of a coarse distance on every `probe_stride`-th vertex, and a
+    /// shape is dropped as soon as its running mean already exceeds the best full distance
+    /// (running sums of non-negative terms never decrease), so most shapes cost a fraction
+    /// of their vertices.
     pub fn nearest(&self, shape: &[[f64; 3]]) -> Result<NearestTraining, EvalError> {
         let n = self.shapes[0].len();
         if shape.len() != n {
@@ -108,13 +140,21 @@ impl<'a> CorrespondedShapes<'a> {
                 found: shape.len(),
             });
         }
+        let mut order: Vec<(f64, usize)> = self
+            .shapes
+            .iter()
+            .enumerate()
+            .map(|(k, s)| (self.probe_distance(shape, s), k))
+            .collect();
+        order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let mut best = NearestTraining {
             index: 0,
             distance_mm: f64::INFINITY,
         };
-        for (k, s) in self.shapes.iter().enumerate() {
-            let d = correspondence_distance(shape, s);
-            if d < best.distance_mm {
+        for (_, k) in order {
+            if let Some(d) = distance_below(shape, self.shapes[k], best.distance_mm)
+                && (d < best.distance_mm || (d == best.distance_mm && k < best.index))
+            {
                 best = NearestTraining {
                     index: k,
                     distance_mm: d,
@@ -122,6 +162,15 @@ impl<'a> CorrespondedShapes<'a> {
             }
         }
         Ok(best)
+    }
+
+    /// Mean distance between corresponding vertices on the probe vertices only.
+    fn probe_distance(&self, a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+        a.iter()
+            .zip(b)
+            .step_by(self.probe_stride)
+            .map(|(p, q)| vertex_distance(p, q))
+            .sum()
     }
 
     /// The near-copy threshold: the `percentile` of each training shape's distance to its
@@ -189,6 +238,53 @@ mod tests {
         let shifted = shapes.nearest(&cloud(2.6, 20)).unwrap();
         assert_eq!(shifted.index, 2);
         assert!((shifted.distance_mm - 0.4).abs() < 1e-12);
+    }
+
+    /// The plain search: every shape in full, in index order.
+    fn brute_force(training: &[Vec<[f64; 3]>], shape: &[[f64; 3]]) -> NearestTraining {
+        let mut best = NearestTraining {
+            index: 0,
+            distance_mm: f64::INFINITY,
+        };
+        for (k, s) in training.iter().enumerate() {
+            let d = correspondence_distance(shape, s);
+            if d < best.distance_mm {
+                best = NearestTraining {
+                    index: k,
+                    distance_mm: d,
+                };
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn the_pruned_search_finds_exactly_what_the_full_search_finds() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut jitter = |base: &[[f64; 3]], sd: f64| -> Vec<[f64; 3]> {
+            base.iter()
+                .map(|p| p.map(|c| c + sd * (rng.random::<f64>() - 0.5)))
+                .collect()
+        };
+        let base: Vec<[f64; 3]> = (0..500)
+            .map(|i| {
+                let t = i as f64 * 0.1;
+                [40.0 * t.cos(), 30.0 * t.sin(), i as f64 * 0.2]
+            })
+            .collect();
+        let mut training: Vec<Vec<[f64; 3]>> = (0..40).map(|_| jitter(&base, 8.0)).collect();
+        // Two identical training shapes: a copy of either is nearest to the lower index.
+        training[31] = training[12].clone();
+        let shapes = CorrespondedShapes::new(&training).unwrap();
+        let mut queries: Vec<Vec<[f64; 3]>> = (0..30).map(|_| jitter(&base, 8.0)).collect();
+        queries.push(training[31].clone());
+        queries.push(jitter(&training[7], 0.5));
+        for q in &queries {
+            assert_eq!(shapes.nearest(q).unwrap(), brute_force(&training, q));
+        }
+        assert_eq!(shapes.nearest(&training[31]).unwrap().index, 12);
+        assert_eq!(shapes.nearest(&queries[31]).unwrap().index, 7);
     }
 
     #[test]
