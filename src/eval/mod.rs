@@ -10,6 +10,7 @@ pub mod kde;
 pub mod metrics;
 pub mod normal;
 pub mod privacy;
+pub mod shape_columns;
 pub mod stats;
 pub mod surface_metrics;
 

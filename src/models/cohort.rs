@@ -227,7 +227,7 @@ fn evaluate_draw<M: ShapeModel + ?Sized>(
 pub struct TrainingIndex<'a> {
     /// `shapes[m]`: the training shapes normalised to atlas `m`, in correspondence with the
     /// members of cluster `m` (model frame, mm).
-    pub shapes: Vec<CorrespondedShapes<'a>>,
+    pub shapes: Vec<CorrespondedShapes>,
     /// Near-copy threshold of each atlas.
     pub privacy: &'a [PrivacyThreshold],
 }
@@ -256,7 +256,7 @@ impl<'a> TrainingIndex<'a> {
     fn of_cluster(
         &self,
         cluster: usize,
-    ) -> Result<(&CorrespondedShapes<'a>, &PrivacyThreshold), ModelError> {
+    ) -> Result<(&CorrespondedShapes, &PrivacyThreshold), ModelError> {
         match (self.shapes.get(cluster), self.privacy.get(cluster)) {
             (Some(s), Some(p)) => Ok((s, p)),
             _ => Err(ModelError::InvalidInput(format!(

@@ -205,3 +205,27 @@ fn rejects_bad_input() {
     assert!(model.project(&[0.0; 6]).is_err());
     assert!(model.reconstruct(&[0.0, 1.0]).is_err());
 }
+
+#[test]
+fn combining_modes_gives_the_same_bits_on_every_cpu_path() {
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let normal = Normal::new(0.0, 3.0).unwrap();
+    let mean: Vec<f64> = (0..301).map(|_| normal.sample(&mut rng)).collect();
+    let modes: Vec<Vec<f64>> = (0..7)
+        .map(|_| (0..301).map(|_| normal.sample(&mut rng)).collect())
+        .collect();
+    let b: Vec<f64> = (0..7).map(|_| normal.sample(&mut rng)).collect();
+    let plain = combine_baseline(&mean, &modes, &b);
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2, checked just above.
+        let wide = unsafe { combine_avx2(&mean, &modes, &b) };
+        assert!(
+            wide.iter()
+                .zip(&plain)
+                .all(|(w, p)| w.to_bits() == p.to_bits())
+        );
+    }
+    let expected: f64 = mean[5] + (0..7).map(|i| b[i] * modes[i][5]).sum::<f64>();
+    assert!((plain[5] - expected).abs() < 1e-9);
+}
