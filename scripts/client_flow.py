@@ -148,6 +148,20 @@ def untyped(obj, *fields: str) -> str:
     return ", ".join(out)
 
 
+def enum_args(op, **kwargs) -> dict:
+    """`kwargs` as the generated operation `op` takes them: a string becomes the generated
+    enum where the spec declares a closed vocabulary (e.g. `format_`)."""
+    import enum
+
+    hints = typing.get_type_hints(op.sync_detailed)
+    out = {}
+    for name, value in kwargs.items():
+        kinds = typing.get_args(hints.get(name)) or (hints.get(name),)
+        enums = [k for k in kinds if isinstance(k, type) and issubclass(k, enum.Enum)]
+        out[name] = enums[0](value) if enums and isinstance(value, str) else value
+    return out
+
+
 def download(flow: Flow, op, what: str, **kwargs) -> tuple[bytes, str]:
     """Calls a generated download operation; returns (bytes, content type).
 
@@ -156,7 +170,7 @@ def download(flow: Flow, op, what: str, **kwargs) -> tuple[bytes, str]:
     a gap, and the bytes it carries are still checked.
     """
     try:
-        response = op.sync_detailed(**kwargs)
+        response = op.sync_detailed(**enum_args(op, **kwargs))
     except errors.UnexpectedStatus as e:
         if e.status_code != 200:
             raise StepFailed(f"HTTP {e.status_code}: {body_snippet(e.content)}")
@@ -231,7 +245,7 @@ def main() -> int:
             with files[0].open("rb") as fh:
                 response = upload_meshes.sync_detailed(
                     dataset_id, client=client, body=File(payload=fh, file_name=files[0].name),
-                    format_="obj", name=name)
+                    **enum_args(upload_meshes, format_="obj"), name=name)
             m = expect(response, 201, MeshRecord)
             return m.id, (f"id={m.id} vertices={m.vertex_count}; sent as application/octet-stream"
                           "?format=obj (the generator drops model/obj)")

@@ -13,9 +13,10 @@ use super::error::{ApiError, Problem};
 use super::extract::{Path, Query};
 use super::meshes::{MeshFile, mesh_file_response};
 use super::models::FormatQuery;
+use crate::jobs::cohort::{CohortRequest, load_source, member_shapes};
 use crate::mesh;
 use crate::report::exports::{member_file_name, members_csv};
-use crate::store::cohorts::CohortRecord;
+use crate::store::cohorts::{CohortRecord, MemberGeometry};
 
 pub(super) fn router() -> OpenApiRouter<AppState> {
     OpenApiRouter::new()
@@ -32,7 +33,7 @@ pub(super) fn router() -> OpenApiRouter<AppState> {
             (MeshFile = "model/obj"), (MeshFile = "model/stl"),
             (MeshFile = "application/x-ply"), (MeshFile = "application/vnd.vtk"))),
         (status = 404, description = "No such cohort or member", body = Problem, content_type = "application/problem+json"),
-        (status = 409, description = "The cohort is not drawn (`cohort.not_ready`)", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The cohort is not drawn (`cohort.not_ready`), or a member no longer comes out of its model as first drawn (`cohort.not_reproducible`)", body = Problem, content_type = "application/problem+json"),
     )
 )]
 async fn download_member(
@@ -41,7 +42,7 @@ async fn download_member(
     Query(q): Query<FormatQuery>,
 ) -> Result<Response, ApiError> {
     let format = q.format()?;
-    let mesh = state.store.cohort_member_mesh(&id, index).await?;
+    let mesh = member_shapes_of(&state, &id, &[index]).await?.remove(0);
     let cohort = state.store.cohort_head(&id).await?;
     let bytes = mesh::io::write_with_provenance(&mesh, format, &provenance(&cohort, index));
     Ok(mesh_file_response(
@@ -49,6 +50,45 @@ async fn download_member(
         format,
         bytes,
     ))
+}
+
+/// The shapes of members `indices` of a drawn cohort: stored, or drawn again from its model.
+pub(super) async fn member_shapes_of(
+    state: &AppState,
+    id: &str,
+    indices: &[i64],
+) -> Result<Vec<mesh::Mesh>, ApiError> {
+    let mut geometries = Vec::with_capacity(indices.len());
+    for &i in indices {
+        geometries.push(state.store.cohort_member_geometry(id, i).await?);
+    }
+    shapes(state, id, geometries).await
+}
+
+async fn shapes(
+    state: &AppState,
+    id: &str,
+    geometries: Vec<MemberGeometry>,
+) -> Result<Vec<mesh::Mesh>, ApiError> {
+    let cohort = state.store.cohort_head(id).await?;
+    let model_id = cohort.model_id;
+    let source = match geometries
+        .iter()
+        .any(|g| matches!(g, MemberGeometry::Redraw { .. }))
+    {
+        true => Some(
+            load_source(&state.store, &model_id)
+                .await
+                .map_err(|e| ApiError::from_run(&model_id, e))?,
+        ),
+        false => None,
+    };
+    let request: CohortRequest = serde_json::from_value(cohort.request)
+        .map_err(|e| ApiError::internal(format!("cohort {id} request: {e}")))?;
+    tokio::task::spawn_blocking(move || member_shapes(source.as_ref(), &request, geometries))
+        .await
+        .map_err(|e| ApiError::internal(e.to_string()))?
+        .map_err(|e| ApiError::from_run(&model_id, e))
 }
 
 /// The line kept inside member files (VTK's title line): where the member came from.
@@ -100,7 +140,7 @@ fn archive(
     responses(
         (status = 200, description = "Zip of member meshes, members.csv and report.json", content((MeshFile = "application/zip"))),
         (status = 404, description = "No such cohort", body = Problem, content_type = "application/problem+json"),
-        (status = 409, description = "The cohort is not drawn (`cohort.not_ready`)", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The cohort is not drawn (`cohort.not_ready`), or a member no longer comes out of its model as first drawn (`cohort.not_reproducible`)", body = Problem, content_type = "application/problem+json"),
     )
 )]
 async fn download_archive(
@@ -110,7 +150,7 @@ async fn download_archive(
 ) -> Result<Response, ApiError> {
     let format = q.format()?;
     let cohort = state.store.cohort(&id).await?;
-    let meshes = state.store.cohort_meshes(&id).await?;
+    let meshes = shapes(&state, &id, state.store.cohort_geometries(&id).await?).await?;
     let bytes = tokio::task::spawn_blocking(move || archive(&cohort, &meshes, format))
         .await
         .map_err(|e| ApiError::internal(e.to_string()))?

@@ -16,7 +16,6 @@ use crate::geometry::pca::Sampling;
 use crate::jobs::cohort::{
     CohortRequest, MAX_COHORT_SIZE, MemberSummary, draw_cohort, load_source,
 };
-use crate::jobs::run::RunError;
 use crate::models::ModelError;
 use crate::models::conditional::Target;
 use crate::models::progress::Silent;
@@ -258,11 +257,7 @@ async fn create_cohort(
     }
     let source = load_source(&state.store, &model_id)
         .await
-        .map_err(|e| match e {
-            RunError::Model(e) => ApiError::unreadable_model(&model_id, e),
-            RunError::Store(e) => e.into(),
-            RunError::Invalid(e) => ApiError::internal(e),
-        })?;
+        .map_err(|e| ApiError::from_run(&model_id, e))?;
     let drawn = tokio::task::spawn_blocking(move || draw_cohort(&source, &body, &mut Silent))
         .await
         .map_err(|e| ApiError::internal(e.to_string()))?

@@ -99,6 +99,23 @@ impl ApiError {
         }
     }
 
+    /// A failure to read or draw from model `model_id`: its stored form, the store, or a
+    /// cohort member that no longer comes out of it as first drawn (409
+    /// `cohort.not_reproducible`).
+    pub fn from_run(model_id: &str, err: crate::jobs::run::RunError) -> Self {
+        use crate::jobs::run::RunError;
+        match err {
+            RunError::Model(e) => Self::unreadable_model(model_id, e),
+            RunError::Store(e) => e.into(),
+            RunError::Invalid(e) => Self::internal(e),
+            e @ RunError::NotReproducible { .. } => Self::new(
+                StatusCode::CONFLICT,
+                "cohort.not_reproducible",
+                e.to_string(),
+            ),
+        }
+    }
+
     /// 404 for a path that matches no route.
     pub fn no_route() -> Self {
         Self::new(

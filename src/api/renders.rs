@@ -254,10 +254,12 @@ pub(super) async fn members_picture(
     view: Option<View>,
     size: u32,
 ) -> Result<Vec<u8>, ApiError> {
-    let mut meshes = Vec::with_capacity(indices.len());
-    for &i in indices {
-        meshes.push((i, state.store.cohort_member_mesh(id, i as i64).await?));
-    }
+    let wanted: Vec<i64> = indices.iter().map(|&i| i as i64).collect();
+    let meshes: Vec<(usize, Mesh)> = indices
+        .iter()
+        .copied()
+        .zip(super::cohort_files::member_shapes_of(state, id, &wanted).await?)
+        .collect();
     let title = format!("cohort {id}");
     off_runtime(move || {
         let members: Vec<(usize, &Mesh)> = meshes.iter().map(|(i, m)| (*i, m)).collect();
@@ -275,6 +277,7 @@ pub(super) async fn members_picture(
     responses(
         (status = 200, description = "The picture", content((PlotImage = "image/png"))),
         (status = 404, description = "No such cohort (`cohort.not_found`)", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The cohort is not drawn (`cohort.not_ready`), or a member no longer comes out of its model as first drawn (`cohort.not_reproducible`)", body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "Invalid view, size or indices (`request.invalid_field`)", body = Problem, content_type = "application/problem+json"),
     )
 )]
@@ -301,6 +304,7 @@ async fn members_render(
     responses(
         (status = 200, description = "The picture", content((PlotImage = "image/png"))),
         (status = 404, description = "No such cohort or member", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The cohort is not drawn (`cohort.not_ready`), or a member no longer comes out of its model as first drawn (`cohort.not_reproducible`)", body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "Invalid view or size (`request.invalid_field`)", body = Problem, content_type = "application/problem+json"),
     )
 )]
@@ -312,7 +316,7 @@ async fn member_render(
     let (view, size) = (query.view()?, query.size()?);
     let Ok(index) = usize::try_from(index) else {
         // The store's own "no such member" answer.
-        state.store.cohort_member_mesh(&id, index).await?;
+        state.store.cohort_member_geometry(&id, index).await?;
         return Err(ApiError::internal("a negative member index was found"));
     };
     let png = members_picture(&state, &id, &[index], view, size).await?;

@@ -9,13 +9,17 @@ use utoipa::ToSchema;
 
 use super::run::RunError;
 use crate::eval::acceptance::Flags;
+use crate::eval::metrics::parallel_map;
 use crate::geometry::pca::Sampling;
-use crate::models::cohort::{CohortSpec, Criterion, Member, TrainingIndex, sample_cohort_given};
+use crate::mesh::{Mesh, codec};
+use crate::models::cohort::{
+    CohortSpec, Criterion, Member, TrainingIndex, draw_rng, sample_cohort_given,
+};
 use crate::models::conditional::{Conditional, Target};
 use crate::models::progress::Progress;
 use crate::models::{ModelError, ReferencePopulation, StoredModel};
 use crate::store::Store;
-use crate::store::cohorts::NewMember;
+use crate::store::cohorts::{MemberGeometry, NewMember};
 use crate::store::jobs::Job;
 
 /// Largest cohort.
@@ -172,19 +176,83 @@ pub fn draw_cohort(
     )?;
     let report = serde_json::to_value(&report)
         .map_err(|e| ModelError::InvalidInput(format!("cohort report: {e}")))?;
-    let members = members
-        .into_iter()
-        .map(|m| {
-            let summary = serde_json::to_value(MemberSummary::of(&m, &source.training_ids))
-                .map_err(|e| ModelError::InvalidInput(format!("cohort member: {e}")))?;
-            Ok(NewMember {
-                index: m.index,
-                summary,
-                mesh: m.mesh,
-            })
+    let members = parallel_map(&members, |m| {
+        let summary = serde_json::to_value(MemberSummary::of(m, &source.training_ids))
+            .map_err(|e| ModelError::InvalidInput(format!("cohort member: {e}")))?;
+        Ok(NewMember {
+            index: m.index,
+            summary,
+            mesh_sha256: codec::sha256_hex(&m.mesh),
         })
-        .collect::<Result<_, ModelError>>()?;
+    })
+    .into_iter()
+    .collect::<Result<_, ModelError>>()?;
     Ok(DrawnCohort { report, members })
+}
+
+/// The shapes of a cohort's members: stored ones as they are, the others drawn again from
+/// `source` (the cohort's model) by their draw numbers, each checked against the checksum
+/// taken when it was first drawn. Blocking (call it off the async runtime).
+pub fn member_shapes(
+    source: Option<&CohortSource>,
+    request: &CohortRequest,
+    geometries: Vec<MemberGeometry>,
+) -> Result<Vec<Mesh>, RunError> {
+    let redraws: Vec<(u64, &str)> = geometries
+        .iter()
+        .filter_map(|g| match g {
+            MemberGeometry::Redraw { draw, mesh_sha256 } => Some((*draw, mesh_sha256.as_str())),
+            MemberGeometry::Stored(_) => None,
+        })
+        .collect();
+    let mut drawn = match (source, redraws.is_empty()) {
+        (_, true) => Vec::new(),
+        (Some(source), false) => redraw(source, request, &redraws)?,
+        (None, false) => {
+            return Err(RunError::Invalid(
+                "members to draw again but no model to draw them from".into(),
+            ));
+        }
+    }
+    .into_iter();
+    geometries
+        .into_iter()
+        .map(|g| match g {
+            MemberGeometry::Stored(mesh) => Ok(mesh),
+            MemberGeometry::Redraw { .. } => drawn
+                .next()
+                .ok_or_else(|| RunError::Invalid("a member was not drawn again".into())),
+        })
+        .collect()
+}
+
+/// Draws `draws` (draw number, SHA-256) again as [`draw_cohort`] drew them.
+fn redraw(
+    source: &CohortSource,
+    request: &CohortRequest,
+    draws: &[(u64, &str)],
+) -> Result<Vec<Mesh>, RunError> {
+    let spec = request.spec();
+    let model = source.stored.model.as_ref();
+    let targets: Vec<(String, Target)> = request.targets.clone().into_iter().collect();
+    let conditional = match targets.is_empty() {
+        true => None,
+        false => Some(Conditional::new(model, &targets, spec.seed)?),
+    };
+    parallel_map(draws, |&(draw, sha256)| {
+        let mut rng = draw_rng(spec.seed, draw);
+        let mesh = match &conditional {
+            Some(c) => c.draw(model, &mut rng)?,
+            None => model.sample(&mut rng, spec.sampling)?,
+        }
+        .mesh;
+        if codec::sha256_hex(&mesh) != sha256 {
+            return Err(RunError::NotReproducible { draw });
+        }
+        Ok(mesh)
+    })
+    .into_iter()
+    .collect()
 }
 
 /// Reads the model, its reference population and its training mesh ids.

@@ -24,6 +24,15 @@ pub enum RunError {
     /// The job record is unusable (e.g. a model type this version does not know).
     #[error("{0}")]
     Invalid(String),
+    /// A cohort member drawn again from its model is not the shape first drawn.
+    #[error(
+        "member of draw {draw} no longer comes out of its model as it was first drawn (this \
+         release computes it differently); ask for the cohort again with the same request"
+    )]
+    NotReproducible {
+        /// The member's draw number.
+        draw: u64,
+    },
 }
 
 struct Split {

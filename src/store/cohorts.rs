@@ -7,15 +7,30 @@ use super::jobs::{JobProgress, JobStatus, queued_progress};
 use super::{Page, Store, StoreError, new_id, now};
 use crate::mesh::{Mesh, codec};
 
-/// A cohort member to store.
+/// A cohort member to store: its shape is not stored but drawn again from the model when
+/// asked for, and checked against `mesh_sha256`.
 #[derive(Debug, Clone)]
 pub struct NewMember {
     /// Position in the cohort.
     pub index: usize,
     /// Biomarkers, acceptance flags and draw number (JSON).
     pub summary: serde_json::Value,
-    /// The shape.
-    pub mesh: Mesh,
+    /// SHA-256 of the shape's storage form ([`codec::sha256_hex`]).
+    pub mesh_sha256: String,
+}
+
+/// Where a member's shape comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MemberGeometry {
+    /// Stored with the member (cohorts drawn by releases that stored shapes).
+    Stored(Mesh),
+    /// To be drawn again from the cohort's model and request.
+    Redraw {
+        /// Draw number of the member.
+        draw: u64,
+        /// SHA-256 of the shape's storage form when it was first drawn.
+        mesh_sha256: String,
+    },
 }
 
 /// A cohort to be drawn by the worker pool.
@@ -125,12 +140,13 @@ async fn insert_members(
 ) -> Result<(), StoreError> {
     for member in members {
         sqlx::query(
-            "INSERT INTO cohort_members (cohort_id, member, summary, geometry) VALUES (?, ?, ?, ?)",
+            "INSERT INTO cohort_members (cohort_id, member, summary, geometry, mesh_sha256) \
+             VALUES (?, ?, ?, X'', ?)",
         )
         .bind(cohort_id)
         .bind(member.index as i64)
         .bind(member.summary.to_string())
-        .bind(codec::encode(&member.mesh))
+        .bind(&member.mesh_sha256)
         .execute(&mut **tx)
         .await?;
     }
@@ -308,35 +324,59 @@ impl Store {
         Ok((items, head.member_count as i64))
     }
 
-    /// One member's shape.
-    pub async fn cohort_member_mesh(
+    /// Where one member's shape comes from.
+    pub async fn cohort_member_geometry(
         &self,
         cohort_id: &str,
         index: i64,
-    ) -> Result<Mesh, StoreError> {
+    ) -> Result<MemberGeometry, StoreError> {
         self.cohort_head(cohort_id).await?.drawn()?;
-        let blob: Vec<u8> = sqlx::query_scalar(
-            "SELECT geometry FROM cohort_members WHERE cohort_id = ? AND member = ?",
+        let row = sqlx::query(
+            "SELECT geometry, mesh_sha256, summary FROM cohort_members \
+             WHERE cohort_id = ? AND member = ?",
         )
         .bind(cohort_id)
         .bind(index)
         .fetch_optional(&self.read)
         .await?
         .ok_or_else(|| StoreError::not_found("cohort member", &format!("{cohort_id}/{index}")))?;
-        codec::decode(&blob).map_err(|e| StoreError::Corrupt(format!("cohort member: {e}")))
+        member_geometry(&row)
     }
 
-    /// Every member's shape, in order.
-    pub async fn cohort_meshes(&self, cohort_id: &str) -> Result<Vec<Mesh>, StoreError> {
+    /// Where every member's shape comes from, in member order.
+    pub async fn cohort_geometries(
+        &self,
+        cohort_id: &str,
+    ) -> Result<Vec<MemberGeometry>, StoreError> {
         self.cohort_head(cohort_id).await?.drawn()?;
-        sqlx::query_scalar::<_, Vec<u8>>(
-            "SELECT geometry FROM cohort_members WHERE cohort_id = ? ORDER BY member",
+        sqlx::query(
+            "SELECT geometry, mesh_sha256, summary FROM cohort_members WHERE cohort_id = ? \
+             ORDER BY member",
         )
         .bind(cohort_id)
         .fetch_all(&self.read)
         .await?
         .iter()
-        .map(|b| codec::decode(b).map_err(|e| StoreError::Corrupt(format!("cohort member: {e}"))))
+        .map(member_geometry)
         .collect()
+    }
+}
+
+fn member_geometry(row: &SqliteRow) -> Result<MemberGeometry, StoreError> {
+    let blob: Vec<u8> = row.try_get("geometry")?;
+    if !blob.is_empty() {
+        return codec::decode(&blob)
+            .map(MemberGeometry::Stored)
+            .map_err(|e| StoreError::Corrupt(format!("cohort member: {e}")));
+    }
+    let mesh_sha256: Option<String> = row.try_get("mesh_sha256")?;
+    let draw = json(row, "summary")?
+        .get("draw")
+        .and_then(serde_json::Value::as_u64);
+    match (draw, mesh_sha256) {
+        (Some(draw), Some(mesh_sha256)) => Ok(MemberGeometry::Redraw { draw, mesh_sha256 }),
+        _ => Err(StoreError::Corrupt(
+            "cohort member without geometry, draw number or checksum".into(),
+        )),
     }
 }

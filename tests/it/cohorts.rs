@@ -6,6 +6,8 @@ use std::time::{Duration, Instant};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
+use cohortforge::store::cohorts::MemberGeometry;
+
 use crate::jobs::fitted_rsmp;
 use crate::support::{TestServer, expect_json, expect_problem};
 
@@ -111,6 +113,13 @@ async fn large_cohorts_are_drawn_by_the_workers_and_paged() {
         member_obj(&s, inline_id, 3).await,
         "the worker and the request path must draw identical members"
     );
+    // Shapes are not stored: they are drawn again on download, checked by their checksum.
+    match s.store.cohort_member_geometry(&id, 3).await.unwrap() {
+        MemberGeometry::Redraw { draw, mesh_sha256 } => {
+            assert_eq!((draw, mesh_sha256.len()), (3, 64));
+        }
+        other => panic!("member 3 was stored: {other:?}"),
+    }
 
     // Small but asked to be asynchronous.
     let response = s
