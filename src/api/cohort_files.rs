@@ -42,8 +42,8 @@ async fn download_member(
     Query(q): Query<FormatQuery>,
 ) -> Result<Response, ApiError> {
     let format = q.format()?;
-    let mesh = member_shapes_of(&state, &id, &[index]).await?.remove(0);
     let cohort = state.store.cohort_head(&id).await?;
+    let mesh = member_shapes_of(&state, &cohort, &[index]).await?.remove(0);
     let bytes = mesh::io::write_with_provenance(&mesh, format, &provenance(&cohort, index));
     Ok(mesh_file_response(
         &format!("member_{index:05}"),
@@ -55,23 +55,22 @@ async fn download_member(
 /// The shapes of members `indices` of a drawn cohort: stored, or drawn again from its model.
 pub(super) async fn member_shapes_of(
     state: &AppState,
-    id: &str,
+    cohort: &CohortRecord,
     indices: &[i64],
 ) -> Result<Vec<mesh::Mesh>, ApiError> {
     let mut geometries = Vec::with_capacity(indices.len());
     for &i in indices {
-        geometries.push(state.store.cohort_member_geometry(id, i).await?);
+        geometries.push(state.store.cohort_member_geometry(&cohort.id, i).await?);
     }
-    shapes(state, id, geometries).await
+    shapes(state, cohort, geometries).await
 }
 
 async fn shapes(
     state: &AppState,
-    id: &str,
+    cohort: &CohortRecord,
     geometries: Vec<MemberGeometry>,
 ) -> Result<Vec<mesh::Mesh>, ApiError> {
-    let cohort = state.store.cohort_head(id).await?;
-    let model_id = cohort.model_id;
+    let model_id = cohort.model_id.clone();
     let source = match geometries
         .iter()
         .any(|g| matches!(g, MemberGeometry::Redraw { .. }))
@@ -83,8 +82,8 @@ async fn shapes(
         ),
         false => None,
     };
-    let request: CohortRequest = serde_json::from_value(cohort.request)
-        .map_err(|e| ApiError::internal(format!("cohort {id} request: {e}")))?;
+    let request: CohortRequest = serde_json::from_value(cohort.request.clone())
+        .map_err(|e| ApiError::internal(format!("cohort {} request: {e}", cohort.id)))?;
     tokio::task::spawn_blocking(move || member_shapes(source.as_ref(), &request, geometries))
         .await
         .map_err(|e| ApiError::internal(e.to_string()))?
@@ -150,7 +149,7 @@ async fn download_archive(
 ) -> Result<Response, ApiError> {
     let format = q.format()?;
     let cohort = state.store.cohort(&id).await?;
-    let meshes = shapes(&state, &id, state.store.cohort_geometries(&id).await?).await?;
+    let meshes = shapes(&state, &cohort, state.store.cohort_geometries(&id).await?).await?;
     let bytes = tokio::task::spawn_blocking(move || archive(&cohort, &meshes, format))
         .await
         .map_err(|e| ApiError::internal(e.to_string()))?

@@ -254,11 +254,12 @@ pub(super) async fn members_picture(
     view: Option<View>,
     size: u32,
 ) -> Result<Vec<u8>, ApiError> {
+    let cohort = state.store.cohort_head(id).await?;
     let wanted: Vec<i64> = indices.iter().map(|&i| i as i64).collect();
     let meshes: Vec<(usize, Mesh)> = indices
         .iter()
         .copied()
-        .zip(super::cohort_files::member_shapes_of(state, id, &wanted).await?)
+        .zip(super::cohort_files::member_shapes_of(state, &cohort, &wanted).await?)
         .collect();
     let title = format!("cohort {id}");
     off_runtime(move || {

@@ -66,6 +66,10 @@ pub struct BenchArgs {
     /// Fresh phantoms whose exact volumes stand for the generator's distribution.
     #[arg(long, default_value_t = 200)]
     pub fidelity_phantoms: usize,
+    /// Simplify every phantom to about this many vertices first, as a dataset with
+    /// `target_vertices` does on upload (fewer vertices: a smaller template or atlas).
+    #[arg(long)]
+    pub target_vertices: Option<usize>,
     /// JSON file to write every figure to.
     #[arg(long)]
     pub json: PathBuf,
@@ -106,10 +110,16 @@ pub fn run(args: &BenchArgs) -> CliResult {
         "generating {} + {} {} phantoms (seed {})",
         args.train, args.test, args.family, args.seed
     );
-    let mut phantoms = phantom::generate(args.family, args.train + args.test, args.seed);
+    let mut phantoms = simplified(
+        phantom::generate(args.family, args.train + args.test, args.seed),
+        args.target_vertices,
+    )?;
     let test_phantoms = phantoms.split_off(args.train.min(phantoms.len()));
     let fidelity_seed = args.seed.wrapping_add(FIDELITY_SEED_OFFSET);
-    let fresh = phantom::generate(args.family, args.fidelity_phantoms, fidelity_seed);
+    let fresh = simplified(
+        phantom::generate(args.family, args.fidelity_phantoms, fidelity_seed),
+        args.target_vertices,
+    )?;
     let labels: Option<Vec<String>> = phantoms
         .iter()
         .map(|p| match &p.params.shape {
@@ -170,6 +180,30 @@ pub fn run(args: &BenchArgs) -> CliResult {
     write_json(&args.json, &report)?;
     print_markdown(&report);
     Ok(())
+}
+
+/// The phantoms with their meshes simplified to about `target` vertices (unchanged without
+/// a target); their exact volumes stay those of the generator.
+fn simplified(
+    phantoms: Vec<phantom::Phantom>,
+    target: Option<usize>,
+) -> Result<Vec<phantom::Phantom>, String> {
+    let Some(target) = target else {
+        return Ok(phantoms);
+    };
+    let meshes = crate::eval::metrics::parallel_map(&phantoms, |p| {
+        crate::mesh::simplify::simplify(&p.mesh, target).map(|s| s.mesh)
+    });
+    phantoms
+        .into_iter()
+        .zip(meshes)
+        .map(|(p, mesh)| {
+            Ok(phantom::Phantom {
+                mesh: mesh.map_err(|e| format!("simplifying a phantom: {e}"))?,
+                ..p
+            })
+        })
+        .collect()
 }
 
 fn vertex_range(training: &[Mesh], test: &[Mesh]) -> [usize; 2] {

@@ -13,11 +13,11 @@ use crate::eval::metrics::parallel_map;
 use crate::geometry::pca::Sampling;
 use crate::mesh::{Mesh, codec};
 use crate::models::cohort::{
-    CohortSpec, Criterion, Member, TrainingIndex, draw_rng, sample_cohort_given,
+    CohortSpec, Criterion, Member, TrainingIndex, draw_shape, sample_cohort_given,
 };
 use crate::models::conditional::{Conditional, Target};
 use crate::models::progress::Progress;
-use crate::models::{ModelError, ReferencePopulation, StoredModel};
+use crate::models::{ModelError, ReferencePopulation, ShapeModel, StoredModel};
 use crate::store::Store;
 use crate::store::cohorts::{MemberGeometry, NewMember};
 use crate::store::jobs::Job;
@@ -161,11 +161,7 @@ pub fn draw_cohort(
     let shapes = source.stored.training.normalised_f64();
     let training = TrainingIndex::new(&shapes, &source.stored.training.privacy)?;
     let model = source.stored.model.as_ref();
-    let targets: Vec<(String, Target)> = request.targets.clone().into_iter().collect();
-    let conditional = match targets.is_empty() {
-        true => None,
-        false => Some(Conditional::new(model, &targets, spec.seed)?),
-    };
+    let conditional = conditional_of(model, request)?;
     let (members, report) = sample_cohort_given(
         model,
         &source.reference,
@@ -226,6 +222,18 @@ pub fn member_shapes(
         .collect()
 }
 
+/// The conditional sampler of a request with targets (fitted from seeded pilot draws).
+fn conditional_of(
+    model: &(dyn ShapeModel + Sync),
+    request: &CohortRequest,
+) -> Result<Option<Conditional>, ModelError> {
+    if request.targets.is_empty() {
+        return Ok(None);
+    }
+    let targets: Vec<(String, Target)> = request.targets.clone().into_iter().collect();
+    Conditional::new(model, &targets, request.seed).map(Some)
+}
+
 /// Draws `draws` (draw number, SHA-256) again as [`draw_cohort`] drew them.
 fn redraw(
     source: &CohortSource,
@@ -234,18 +242,9 @@ fn redraw(
 ) -> Result<Vec<Mesh>, RunError> {
     let spec = request.spec();
     let model = source.stored.model.as_ref();
-    let targets: Vec<(String, Target)> = request.targets.clone().into_iter().collect();
-    let conditional = match targets.is_empty() {
-        true => None,
-        false => Some(Conditional::new(model, &targets, spec.seed)?),
-    };
+    let conditional = conditional_of(model, request)?;
     parallel_map(draws, |&(draw, sha256)| {
-        let mut rng = draw_rng(spec.seed, draw);
-        let mesh = match &conditional {
-            Some(c) => c.draw(model, &mut rng)?,
-            None => model.sample(&mut rng, spec.sampling)?,
-        }
-        .mesh;
+        let mesh = draw_shape(model, &spec, conditional.as_ref(), draw)?.mesh;
         if codec::sha256_hex(&mesh) != sha256 {
             return Err(RunError::NotReproducible { draw });
         }

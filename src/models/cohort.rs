@@ -11,7 +11,7 @@ use super::clusters::{ClusterReport, cluster_reports};
 use super::conditional::Conditional;
 use super::progress::{Progress, ProgressUpdate, Silent};
 pub use super::targets_report::TargetsReport;
-use super::{ModelError, ReferencePopulation, ShapeModel};
+use super::{Draw, ModelError, ReferencePopulation, ShapeModel};
 use crate::eval::Biomarkers;
 use crate::eval::acceptance::{Flags, Intervals, Rates, ReferenceStats, joint_acceptance_rates};
 use crate::eval::fidelity::Spread;
@@ -196,6 +196,22 @@ struct Evaluated {
     near_copy: bool,
 }
 
+/// The shape of draw `draw` of a cohort: from its own random stream, through the
+/// conditional sampler when there are targets. The same inputs give the same shape, which is
+/// how a member is drawn again.
+pub fn draw_shape<M: ShapeModel + ?Sized>(
+    model: &M,
+    spec: &CohortSpec,
+    conditional: Option<&Conditional>,
+    draw: u64,
+) -> Result<Draw, ModelError> {
+    let mut rng = draw_rng(spec.seed, draw);
+    match conditional {
+        Some(c) => c.draw(model, &mut rng),
+        None => model.sample(&mut rng, spec.sampling),
+    }
+}
+
 fn evaluate_draw<M: ShapeModel + ?Sized>(
     model: &M,
     intervals: &[Intervals],
@@ -204,11 +220,7 @@ fn evaluate_draw<M: ShapeModel + ?Sized>(
     conditional: Option<&Conditional>,
     draw: u64,
 ) -> Result<Evaluated, ModelError> {
-    let mut rng = draw_rng(spec.seed, draw);
-    let sampled = match conditional {
-        Some(c) => c.draw(model, &mut rng)?,
-        None => model.sample(&mut rng, spec.sampling)?,
-    };
+    let sampled = draw_shape(model, spec, conditional, draw)?;
     let (shapes, privacy) = training.of_cluster(sampled.cluster)?;
     let biomarkers = Biomarkers::from_mesh(&sampled.mesh)?;
     let accepted = joint_flags(intervals, &biomarkers);

@@ -28,9 +28,10 @@ pub enum ModelError {
     },
     /// Acceptance sampling could not find enough accepted members.
     #[error(
-        "only {accepted} of {draws} draws passed the {criterion} criterion and the privacy \
-         guard, short of the {size} asked for; lower size, use a wider criterion (range), or \
-         turn off only_accepted or exclude_near_copies"
+        "only {accepted} of {draws} draws passed every filter asked for (the {criterion} \
+         criterion, the privacy guard, the targets and the plausible range, as requested), short \
+         of the {size} asked for; lower size, widen the criterion or the targets, or turn off \
+         only_accepted or exclude_near_copies"
     )]
     AcceptanceUnreachable {
         /// Members asked for.

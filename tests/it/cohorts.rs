@@ -145,10 +145,27 @@ async fn a_cohort_is_cancelled_while_it_is_drawn() {
     let s = TestServer::start().await;
     let model = fitted_rsmp(&s, 10, 0.2).await;
     let url = s.url(&format!("/v1/models/{model}/cohorts"));
-    // 10,000 members that pass every range and are no near copies keep the only worker
-    // busy for several seconds (tens of thousands of draws).
+    // Members above the training range of volume (a target the model reaches) that must
+    // also lie inside that range (`only_accepted` by range) never exist: the only worker
+    // draws until it has made 20 draws a member, far longer than the test needs.
+    let probe = expect_json(
+        s.client
+            .post(&url)
+            .json(&json!({"size": 3}))
+            .send()
+            .await
+            .unwrap(),
+        StatusCode::CREATED,
+    )
+    .await;
+    let volume = &probe["report"]["biomarkers"]["volume_ml"]["reference"];
+    let (low, high) = (
+        volume["min"].as_f64().unwrap(),
+        volume["max"].as_f64().unwrap(),
+    );
     let strict = json!({"size": 10_000, "seed": 3, "only_accepted": true,
-        "exclude_near_copies": true, "acceptance": {"criterion": "range"}});
+        "acceptance": {"criterion": "range"},
+        "targets": {"volume_ml": {"min": high + 0.1 * (high - low)}}});
     let big = expect_json(
         s.client.post(&url).json(&strict).send().await.unwrap(),
         StatusCode::ACCEPTED,
