@@ -28,6 +28,11 @@ pub struct Config {
     #[arg(long, env = "COHORTFORGE_WORKERS", default_value_t = 1)]
     pub workers: usize,
 
+    /// Seconds a job's lease lasts: a job whose worker is silent this long (crashed, killed,
+    /// cut off) is taken over by another worker.
+    #[arg(long, env = "COHORTFORGE_LEASE_SECONDS", default_value_t = 30)]
+    pub lease_seconds: u64,
+
     /// Largest cohort drawn inside its request (answered 201); larger ones, and any sent
     /// with `Prefer: respond-async`, are queued for the workers (answered 202). Also the
     /// largest cohort whose members are listed inline in `GET /v1/cohorts/{id}`.
@@ -45,6 +50,44 @@ pub struct Config {
     /// Allow binding to a non-loopback address without any token configured.
     #[arg(long, env = "COHORTFORGE_INSECURE")]
     pub insecure: bool,
+}
+
+/// Configuration of a worker process (`cohortforge worker`): workers only, sharing the
+/// database of the API processes, with a small listener for probes and metrics.
+#[derive(clap::Args, Debug, Clone)]
+pub struct WorkerConfig {
+    /// Address of the probes and metrics listener (`/healthz`, `/readyz`, `/metrics`).
+    #[arg(
+        long,
+        env = "COHORTFORGE_WORKER_BIND",
+        default_value = "127.0.0.1:9464"
+    )]
+    pub bind: SocketAddr,
+
+    /// SQLite database file of the API processes (created with its tables when missing).
+    #[arg(long, env = "COHORTFORGE_DATABASE", default_value = "cohortforge.db")]
+    pub database: PathBuf,
+
+    /// Number of worker threads that run jobs.
+    #[arg(long, env = "COHORTFORGE_WORKERS", default_value_t = 1)]
+    pub workers: usize,
+
+    /// Seconds a job's lease lasts: a job whose worker is silent this long is taken over.
+    #[arg(long, env = "COHORTFORGE_LEASE_SECONDS", default_value_t = 30)]
+    pub lease_seconds: u64,
+}
+
+impl WorkerConfig {
+    /// Checks that the configuration can run jobs.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.workers == 0 {
+            return Err(ConfigError::ZeroLimit("--workers"));
+        }
+        if self.lease_seconds == 0 {
+            return Err(ConfigError::ZeroLimit("--lease-seconds"));
+        }
+        Ok(())
+    }
 }
 
 /// A configuration that cannot start the service.
@@ -79,6 +122,7 @@ impl Config {
             max_body_bytes: 256 * 1024 * 1024,
             max_vertices: 1_000_000,
             workers: 1,
+            lease_seconds: 30,
             sync_cohort_max: 1_000,
             admin_token: None,
             read_token: None,
@@ -93,6 +137,9 @@ impl Config {
         }
         if self.max_vertices == 0 {
             return Err(ConfigError::ZeroLimit("--max-vertices"));
+        }
+        if self.lease_seconds == 0 {
+            return Err(ConfigError::ZeroLimit("--lease-seconds"));
         }
         for (flag, token) in [
             ("--admin-token", &self.admin_token),

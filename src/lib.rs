@@ -26,3 +26,5 @@ pub mod report;
 pub mod segmentation;
 /// SQLite repositories for datasets, meshes (and later jobs, models, cohorts).
 pub mod store;
+/// Prometheus metrics of the process, scraped at `/metrics`.
+pub mod telemetry;

@@ -262,6 +262,7 @@ async fn create_cohort(
         .await
         .map_err(|e| ApiError::internal(e.to_string()))?
         .map_err(cohort_failed)?;
+    crate::telemetry::record_members_drawn("sync", drawn.members.len());
     let id = state
         .store
         .insert_cohort(&model_id, request, drawn.report, drawn.members)

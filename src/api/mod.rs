@@ -14,6 +14,7 @@ mod exports;
 pub mod extract;
 mod jobs;
 mod meshes;
+mod metrics;
 mod models;
 mod octet;
 mod ops;
@@ -38,7 +39,7 @@ use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_swagger_ui::SwaggerUi;
 
-use crate::config::Config;
+use crate::config::{Config, WorkerConfig};
 use crate::jobs::{WorkerPool, WorkerSettings};
 use crate::mesh::io::Limits;
 use crate::mesh::validate::IngestOptions;
@@ -138,7 +139,7 @@ fn api_routes() -> (OpenApiRouter<AppState>, OpenApiRouter<AppState>) {
         .merge(plots::router())
         .merge(renders::router())
         .merge(exports::router());
-    (v1, ops::router())
+    (v1, ops::router().merge(metrics::router()))
 }
 
 /// The OpenAPI document of the service.
@@ -161,6 +162,7 @@ fn finish_spec(spec: &mut utoipa::openapi::OpenApi) {
 
 /// The complete HTTP application.
 pub fn app(state: AppState, max_body_bytes: usize) -> Router {
+    crate::telemetry::init();
     let (v1, ops) = api_routes();
     let v1 = v1.layer(axum::middleware::from_fn_with_state(
         state.clone(),
@@ -178,6 +180,7 @@ pub fn app(state: AppState, max_body_bytes: usize) -> Router {
         .method_not_allowed_fallback(|| async { ApiError::method_not_allowed() })
         .with_state(state)
         .layer(axum::middleware::from_fn(octet::octet_stream_when_preferred))
+        .layer(axum::middleware::from_fn(metrics::record_request))
         .layer(DefaultBodyLimit::max(max_body_bytes))
         .layer(PropagateRequestIdLayer::new(request_id.clone()))
         .layer(
@@ -218,15 +221,72 @@ pub async fn run(
     shutdown: CancellationToken,
 ) -> std::io::Result<()> {
     let wake = Arc::new(Notify::new());
-    let pool = WorkerPool::start(
-        store.clone(),
+    let pool = start_pool(
+        &store,
         config.workers,
+        config.lease_seconds,
+        &wake,
+        &shutdown,
+    )?;
+    let served = serve(listener, config, store, wake, shutdown.clone()).await;
+    shutdown.cancel();
+    let _ = tokio::task::spawn_blocking(move || pool.join()).await;
+    served
+}
+
+/// Starts `workers` job workers on the current runtime with leases of `lease_seconds`.
+fn start_pool(
+    store: &Store,
+    workers: usize,
+    lease_seconds: u64,
+    wake: &Arc<Notify>,
+    shutdown: &CancellationToken,
+) -> std::io::Result<WorkerPool> {
+    let settings = WorkerSettings {
+        lease: std::time::Duration::from_secs(lease_seconds),
+        ..WorkerSettings::default()
+    };
+    WorkerPool::start(
+        store.clone(),
+        workers,
         tokio::runtime::Handle::current(),
         wake.clone(),
         shutdown.clone(),
-        WorkerSettings::default(),
+        settings,
+    )
+}
+
+/// Runs a worker process: `config.workers` workers that poll the shared database for jobs,
+/// and on `listener` only the probes and `/metrics`, until `shutdown` is cancelled; then
+/// waits for the workers (a running job is handed back to the queue).
+pub async fn run_workers(
+    listener: TcpListener,
+    config: &WorkerConfig,
+    store: Store,
+    shutdown: CancellationToken,
+) -> std::io::Result<()> {
+    crate::telemetry::init();
+    let wake = Arc::new(Notify::new());
+    let pool = start_pool(
+        &store,
+        config.workers,
+        config.lease_seconds,
+        &wake,
+        &shutdown,
     )?;
-    let served = serve(listener, config, store, wake, shutdown.clone()).await;
+    let state = AppState::new(&Config::local(config.database.clone()), store, wake);
+    let (router, _) = OpenApiRouter::new()
+        .merge(ops::router())
+        .merge(metrics::router())
+        .split_for_parts();
+    let app = router
+        .fallback(|| async { ApiError::no_route() })
+        .with_state(state)
+        .layer(axum::middleware::from_fn(metrics::record_request));
+    let on_stop = shutdown.clone();
+    let served = axum::serve(listener, app)
+        .with_graceful_shutdown(async move { on_stop.cancelled().await })
+        .await;
     shutdown.cancel();
     let _ = tokio::task::spawn_blocking(move || pool.join()).await;
     served

@@ -12,12 +12,13 @@ pub mod progress;
 pub mod study;
 pub mod tables;
 
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 
 use clap::{Parser, Subcommand};
 use tokio_util::sync::CancellationToken;
 
-use crate::config::Config;
+use crate::config::{Config, WorkerConfig};
 use crate::mesh::{Format, io, phantom};
 use crate::store::Store;
 
@@ -36,8 +37,11 @@ pub struct Cli {
 /// Offline tasks.
 #[derive(Subcommand, Debug)]
 pub enum Command {
-    /// Serve the HTTP API (the default).
+    /// Serve the HTTP API and run jobs (the default; `--workers 0` for an API-only replica).
     Serve(Config),
+    /// Run jobs only, on the database of the API processes, with probes and `/metrics` on
+    /// their own listener.
+    Worker(WorkerConfig),
     /// Write synthetic phantom meshes with known ground truth, plus params.csv.
     Phantoms(PhantomArgs),
     /// Print the OpenAPI document as JSON.
@@ -84,6 +88,7 @@ pub fn run(cli: Cli) -> CliResult {
     match cli.command {
         None => serve(cli.serve),
         Some(Command::Serve(config)) => serve(config),
+        Some(Command::Worker(config)) => worker(config),
         Some(Command::Phantoms(args)) => write_phantoms(&args),
         Some(Command::Fit(args)) => study::fit(&args),
         Some(Command::Evaluate(args)) => study::evaluate_model(&args),
@@ -100,31 +105,81 @@ pub fn run(cli: Cli) -> CliResult {
 
 fn serve(config: Config) -> CliResult {
     config.validate().map_err(|e| e.to_string())?;
+    let database = config.database.clone();
+    let bind = config.bind;
+    run_process(
+        &database,
+        bind,
+        "cohortforge listening",
+        |listener, store, stop| async move { crate::api::run(listener, &config, store, stop).await },
+    )
+}
+
+fn worker(config: WorkerConfig) -> CliResult {
+    config.validate().map_err(|e| e.to_string())?;
+    let database = config.database.clone();
+    let bind = config.bind;
+    let started = "cohortforge worker running; probes and metrics listening";
+    run_process(
+        &database,
+        bind,
+        started,
+        |listener, store, stop| async move {
+            crate::api::run_workers(listener, &config, store, stop).await
+        },
+    )
+}
+
+/// Opens the database, binds `bind` and runs `service` until SIGINT or SIGTERM, then
+/// closes the database.
+fn run_process<F, Fut>(database: &Path, bind: SocketAddr, started: &str, service: F) -> CliResult
+where
+    F: FnOnce(tokio::net::TcpListener, Store, CancellationToken) -> Fut,
+    Fut: std::future::Future<Output = std::io::Result<()>>,
+{
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
         .map_err(|e| e.to_string())?;
     runtime.block_on(async move {
-        let store = Store::open(&config.database)
+        let store = Store::open(database)
             .await
-            .map_err(|e| format!("cannot open database {}: {e}", config.database.display()))?;
-        let listener = tokio::net::TcpListener::bind(config.bind)
+            .map_err(|e| format!("cannot open database {}: {e}", database.display()))?;
+        let listener = tokio::net::TcpListener::bind(bind)
             .await
-            .map_err(|e| format!("cannot listen on {}: {e}", config.bind))?;
-        tracing::info!(bind = %config.bind, database = %config.database.display(), "cohortforge listening");
+            .map_err(|e| format!("cannot listen on {bind}: {e}"))?;
+        tracing::info!(bind = %bind, database = %database.display(), "{started}");
         let shutdown = CancellationToken::new();
-        let on_signal = shutdown.clone();
-        tokio::spawn(async move {
-            let _ = tokio::signal::ctrl_c().await;
-            tracing::info!("shutting down");
-            on_signal.cancel();
-        });
-        crate::api::run(listener, &config, store.clone(), shutdown)
+        tokio::spawn(stop_on_signal(shutdown.clone()));
+        service(listener, store.clone(), shutdown)
             .await
             .map_err(|e| e.to_string())?;
         store.close().await;
         Ok(())
     })
+}
+
+/// Cancels `shutdown` on SIGINT (Ctrl-C) or SIGTERM (what container runtimes send).
+async fn stop_on_signal(shutdown: CancellationToken) {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        match signal(SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = tokio::signal::ctrl_c() => {}
+                    _ = term.recv() => {}
+                }
+            }
+            Err(_) => {
+                let _ = tokio::signal::ctrl_c().await;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = tokio::signal::ctrl_c().await;
+    tracing::info!("shutting down");
+    shutdown.cancel();
 }
 
 fn write_phantoms(args: &PhantomArgs) -> CliResult {

@@ -284,5 +284,7 @@ pub fn run_cohort_job(
     let request: CohortRequest = serde_json::from_value(job.params.clone())
         .map_err(|e| RunError::Invalid(format!("cohort job {}: {e}", job.id)))?;
     let source = handle.block_on(load_source(store, model_id))?;
-    Ok(draw_cohort(&source, &request, progress)?)
+    let drawn = draw_cohort(&source, &request, progress)?;
+    crate::telemetry::record_members_drawn("job", drawn.members.len());
+    Ok(drawn)
 }

@@ -136,6 +136,14 @@ fn run_fit_job(
         job.seed,
         progress,
     )?;
+    crate::telemetry::record_fit_stages(
+        &job.model_type,
+        outcome
+            .summary
+            .timings
+            .iter()
+            .map(|t| (t.stage.as_str(), t.seconds)),
+    );
     let json = |v: Result<serde_json::Value, serde_json::Error>| {
         v.map_err(|e| RunError::Invalid(e.to_string()))
     };

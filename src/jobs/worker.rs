@@ -62,6 +62,13 @@ impl WorkerPool {
         shutdown: CancellationToken,
         settings: WorkerSettings,
     ) -> std::io::Result<Self> {
+        if count > 0 {
+            handle.spawn(recover_leases(
+                store.clone(),
+                settings.poll,
+                shutdown.clone(),
+            ));
+        }
         let instance = uuid::Uuid::new_v4().simple().to_string();
         let mut threads = Vec::with_capacity(count);
         for n in 0..count {
@@ -90,17 +97,29 @@ impl WorkerPool {
     }
 }
 
+/// Every `interval`, requeues the jobs of workers whose lease expired (or fails those out
+/// of attempts), also while every worker of this pool is busy, so a dead worker's job goes
+/// to the next free worker of any process.
+async fn recover_leases(store: Store, interval: Duration, shutdown: CancellationToken) {
+    loop {
+        match store.recover_expired_leases().await {
+            Ok((requeued, failed)) if requeued + failed > 0 => {
+                tracing::warn!(requeued, failed, "recovered jobs whose worker stopped")
+            }
+            Ok(_) => {}
+            Err(e) => tracing::error!(error = %e, "lease recovery failed"),
+        }
+        tokio::select! {
+            _ = shutdown.cancelled() => return,
+            _ = tokio::time::sleep(interval) => {}
+        }
+    }
+}
+
 impl Worker {
     fn run(self) {
         tracing::info!(worker = %self.id, "worker started");
         while !self.shutdown.is_cancelled() {
-            match self.handle.block_on(self.store.recover_expired_leases()) {
-                Ok((requeued, failed)) if requeued + failed > 0 => {
-                    tracing::warn!(requeued, failed, "recovered jobs whose worker stopped")
-                }
-                Ok(_) => {}
-                Err(e) => tracing::error!(error = %e, "lease recovery failed"),
-            }
             let lease_ms = self.settings.lease.as_millis() as i64;
             match self
                 .handle
@@ -145,6 +164,7 @@ impl Worker {
             shared,
             flags: flags.clone(),
         };
+        let started = std::time::Instant::now();
         let outcome = catch_unwind(AssertUnwindSafe(|| {
             run_job(&self.handle, &self.store, &job, &mut sink)
         }));
@@ -155,18 +175,18 @@ impl Worker {
                     .finish_job(&job.id, &self.id, status, error.as_deref()),
             )
         };
-        let written = match outcome {
-            Ok(Ok(output)) => self.complete(&job, output),
+        let (ended, written) = match outcome {
+            Ok(Ok(output)) => ("succeeded", self.complete(&job, output)),
             Ok(Err(RunError::Model(ModelError::Cancelled(_))))
                 if flags.shutdown.load(Ordering::SeqCst) =>
             {
-                self.handle
-                    .block_on(self.store.release_job(&job.id, &self.id))
+                let released = self.store.release_job(&job.id, &self.id);
+                ("released", self.handle.block_on(released))
             }
             Ok(Err(RunError::Model(ModelError::Cancelled(_)))) => {
-                finish(JobStatus::Cancelled, None)
+                ("cancelled", finish(JobStatus::Cancelled, None))
             }
-            Ok(Err(e)) => finish(JobStatus::Failed, Some(e.to_string())),
+            Ok(Err(e)) => ("failed", finish(JobStatus::Failed, Some(e.to_string()))),
             Err(panic) => {
                 let what = panic
                     .downcast_ref::<String>()
@@ -174,12 +194,20 @@ impl Worker {
                     .or_else(|| panic.downcast_ref::<&str>().map(|s| (*s).to_owned()))
                     .unwrap_or_default();
                 tracing::error!(panic = %what, "job panicked");
-                finish(
-                    JobStatus::Failed,
-                    Some(format!("internal error during the job: {what}")),
-                )
+                let error = format!("internal error during the job: {what}");
+                ("failed", finish(JobStatus::Failed, Some(error)))
             }
         };
+        let outcome = match written {
+            Ok(false) => "lease_lost",
+            _ => ended,
+        };
+        crate::telemetry::record_job_run(
+            job.kind.as_str(),
+            &job.model_type,
+            outcome,
+            started.elapsed().as_secs_f64(),
+        );
         match written {
             Ok(true) => tracing::info!("job ended"),
             Ok(false) => tracing::warn!("job ended after its lease was lost; result discarded"),

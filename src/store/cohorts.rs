@@ -168,7 +168,7 @@ impl Store {
         members: Vec<NewMember>,
     ) -> Result<String, StoreError> {
         let id = new_id();
-        let mut tx = self.write.begin().await?;
+        let mut tx = self.begin_write().await?;
         let exists: Option<i64> = sqlx::query_scalar("SELECT 1 FROM models WHERE id = ?")
             .bind(model_id)
             .fetch_optional(&mut *tx)
@@ -197,7 +197,7 @@ impl Store {
     /// Creates a cohort to be drawn by the worker pool and queues its job, atomically.
     /// Returns the cohort's id.
     pub async fn queue_cohort(&self, new: NewCohortJob) -> Result<String, StoreError> {
-        let mut tx = self.write.begin().await?;
+        let mut tx = self.begin_write().await?;
         let model = sqlx::query("SELECT dataset_id, model_type FROM models WHERE id = ?")
             .bind(&new.model_id)
             .fetch_optional(&mut *tx)
@@ -248,7 +248,7 @@ impl Store {
         report: serde_json::Value,
         members: Vec<NewMember>,
     ) -> Result<bool, StoreError> {
-        let mut tx = self.write.begin().await?;
+        let mut tx = self.begin_write().await?;
         let held = sqlx::query(
             "UPDATE jobs SET status = 'succeeded', finished_at = ?, lease_owner = NULL, \
              lease_expires_at = NULL, \

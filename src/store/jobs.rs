@@ -227,7 +227,7 @@ impl Store {
     /// Queues a job. With an idempotency key already used for the same request, returns the
     /// existing job and `false`; for another request, [`StoreError::IdempotencyMismatch`].
     pub async fn submit_job(&self, new: NewJob) -> Result<(Job, bool), StoreError> {
-        let mut tx = self.write.begin().await?;
+        let mut tx = self.begin_write().await?;
         if let Some(key) = &new.idempotency_key {
             let existing =
                 sqlx::query("SELECT id, request_hash FROM jobs WHERE idempotency_key = ?")
@@ -311,7 +311,7 @@ impl Store {
     /// Returns how many were requeued and how many failed.
     pub async fn recover_expired_leases(&self) -> Result<(u64, u64), StoreError> {
         let now_ms = unix_ms();
-        let mut tx = self.write.begin().await?;
+        let mut tx = self.begin_write().await?;
         let failed = sqlx::query(
             "UPDATE jobs SET status = 'failed', lease_owner = NULL, lease_expires_at = NULL, \
              finished_at = ?, error = 'the worker running this job stopped ' || attempts || \
@@ -344,7 +344,7 @@ impl Store {
              progress = json_object('stage', 'starting', 'step', 0, 'total', 0, 'fraction', 0.0, \
                                     'message', 'claimed by a worker', 'loss', NULL) \
              WHERE id = (SELECT id FROM jobs WHERE status = 'queued' ORDER BY seq LIMIT 1) \
-             RETURNING id",
+             AND status = 'queued' RETURNING id",
         )
         .bind(worker)
         .bind(unix_ms() + lease_ms)

@@ -125,7 +125,7 @@ impl Store {
         dataset_id: &str,
         meshes: Vec<NewMesh>,
     ) -> Result<Vec<MeshRecord>, StoreError> {
-        let mut tx = self.write.begin().await?;
+        let mut tx = self.begin_write().await?;
         let exists: Option<i64> = sqlx::query_scalar("SELECT 1 FROM datasets WHERE id = ?")
             .bind(dataset_id)
             .fetch_optional(&mut *tx)

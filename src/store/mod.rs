@@ -1,7 +1,9 @@
 //! SQLite repositories. All SQL lives here, so HTTP handlers and workers share it.
 //!
 //! One writer connection (SQLite allows one writer at a time; a single connection avoids
-//! `SQLITE_BUSY`) and a small pool of readers, both in WAL mode with foreign keys on.
+//! `SQLITE_BUSY`) and a small pool of readers, both in WAL mode with foreign keys on. Other
+//! processes may share the file (API replicas, `cohortforge worker`): write transactions
+//! take the write lock when they begin and wait for it up to the busy timeout.
 
 pub mod cohorts;
 pub mod datasets;
@@ -9,6 +11,7 @@ mod error;
 pub mod jobs;
 pub mod meshes;
 pub mod models;
+pub mod queue_stats;
 
 use std::path::Path;
 use std::str::FromStr;
@@ -62,6 +65,15 @@ impl Store {
             .connect_with(options.read_only(true))
             .await?;
         Ok(Self { read, write })
+    }
+
+    /// A write transaction that holds the database's write lock from its first statement
+    /// (`BEGIN IMMEDIATE`): a read-then-write transaction (an idempotency key, a duplicate
+    /// mesh) cannot interleave with another process's, which waits for the lock instead.
+    pub(crate) async fn begin_write(
+        &self,
+    ) -> Result<sqlx::Transaction<'static, sqlx::Sqlite>, StoreError> {
+        Ok(self.write.begin_with("BEGIN IMMEDIATE").await?)
     }
 
     /// Checks that the database answers.

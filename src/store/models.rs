@@ -100,7 +100,7 @@ impl Store {
         worker: &str,
         new: NewModel,
     ) -> Result<Option<String>, StoreError> {
-        let mut tx = self.write.begin().await?;
+        let mut tx = self.begin_write().await?;
         let id = new_id();
         let held = sqlx::query(
             "UPDATE jobs SET status = 'succeeded', model_id = ?, finished_at = ?, \

@@ -18,9 +18,10 @@ const PURE: [&str; 7] = [
 /// Crates a pure module must not use.
 const FORBIDDEN_CRATES: [&str; 5] = ["axum", "sqlx", "tokio", "tower", "reqwest"];
 /// Layers from top to bottom; a module may use only modules after it.
-const LAYERS: [&[&str]; 7] = [
+const LAYERS: [&[&str]; 8] = [
     &["api"],
     &["jobs"],
+    &["telemetry"],
     &["report"],
     &["store", "models"],
     &["nn", "eval"],

@@ -15,5 +15,6 @@ mod meshes;
 mod nifti;
 mod openapi;
 mod pictures_exports;
+mod processes;
 mod reports;
 mod support;

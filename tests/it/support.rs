@@ -17,6 +17,7 @@ pub struct TestServer {
     /// The store the server uses, for checks behind the API.
     pub store: Store,
     shutdown: CancellationToken,
+    database: PathBuf,
     _dir: tempfile::TempDir,
 }
 
@@ -28,10 +29,21 @@ impl TestServer {
 
     /// Starts a server after adjusting the configuration.
     pub async fn start_with(adjust: impl FnOnce(&mut Config)) -> Self {
+        Self::start_on(None, adjust).await
+    }
+
+    /// A second server on `other`'s database file, as an API replica in another process
+    /// would be: its own connections, the same data.
+    pub async fn sharing(other: &TestServer) -> Self {
+        Self::start_on(Some(other.database_path()), |_| {}).await
+    }
+
+    async fn start_on(database: Option<PathBuf>, adjust: impl FnOnce(&mut Config)) -> Self {
         let dir = tempfile::tempdir().expect("temporary directory");
-        let mut config = Config::local(dir.path().join("test.db"));
+        let mut config = Config::local(database.unwrap_or_else(|| dir.path().join("test.db")));
         adjust(&mut config);
         config.validate().expect("valid test configuration");
+        let config_database = config.database.clone();
         let store = Store::open(&config.database).await.expect("database opens");
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
             .await
@@ -49,13 +61,14 @@ impl TestServer {
             client: reqwest::Client::new(),
             store,
             shutdown,
+            database: config_database,
             _dir: dir,
         }
     }
 
     /// The server's SQLite file (for tests that tamper with what is stored).
     pub fn database_path(&self) -> PathBuf {
-        self._dir.path().join("test.db")
+        self.database.clone()
     }
 
     /// Absolute URL of a path.
