@@ -11,8 +11,10 @@ pub struct Config {
     #[arg(long, env = "COHORTFORGE_BIND", default_value = "127.0.0.1:8080")]
     pub bind: SocketAddr,
 
-    /// SQLite database file; created with its tables when missing.
-    #[arg(long, env = "COHORTFORGE_DATABASE", default_value = "cohortforge.db")]
+    /// Database: `sqlite://FILE` or a bare file path (SQLite; created with its tables when
+    /// missing).
+    #[arg(long, env = "COHORTFORGE_DATABASE", default_value = "sqlite://cohortforge.db",
+        value_parser = parse_database)]
     pub database: PathBuf,
 
     /// Largest accepted request body in bytes (uploads included).
@@ -64,8 +66,9 @@ pub struct WorkerConfig {
     )]
     pub bind: SocketAddr,
 
-    /// SQLite database file of the API processes (created with its tables when missing).
-    #[arg(long, env = "COHORTFORGE_DATABASE", default_value = "cohortforge.db")]
+    /// Database of the API processes: `sqlite://FILE` or a bare file path.
+    #[arg(long, env = "COHORTFORGE_DATABASE", default_value = "sqlite://cohortforge.db",
+        value_parser = parse_database)]
     pub database: PathBuf,
 
     /// Number of worker threads that run jobs.
@@ -88,6 +91,35 @@ impl WorkerConfig {
         }
         Ok(())
     }
+}
+
+/// The SQLite file of a `--database` value: `sqlite://FILE` (`sqlite:///abs/path` for an
+/// absolute path), `sqlite:FILE`, or a bare path.
+pub fn parse_database(value: &str) -> Result<PathBuf, String> {
+    let scheme = value.split_once("://").map(|(s, _)| s.to_ascii_lowercase());
+    if let Some("postgres" | "postgresql") = scheme.as_deref() {
+        return Err(
+            "PostgreSQL is not supported by this version yet; give a SQLite file \
+             (sqlite://FILE or a path)"
+                .into(),
+        );
+    }
+    let path = value
+        .strip_prefix("sqlite://")
+        .or_else(|| value.strip_prefix("sqlite:"))
+        .unwrap_or(value);
+    if let Some(other) = scheme.filter(|s| s != "sqlite") {
+        return Err(format!(
+            "unknown database scheme {other}://; give sqlite://FILE or a file path"
+        ));
+    }
+    if path.is_empty() || path.contains('?') {
+        return Err(format!(
+            "{value:?} names no database file; give sqlite://FILE or a file path \
+             (options after '?' are not supported)"
+        ));
+    }
+    Ok(PathBuf::from(path))
 }
 
 /// A configuration that cannot start the service.
@@ -177,6 +209,23 @@ mod tests {
         c.insecure = false;
         c.admin_token = Some("0123456789abcdef".into());
         assert!(c.validate().is_ok());
+    }
+
+    #[test]
+    fn database_urls_and_bare_paths_name_a_sqlite_file() {
+        let file = |v: &str| parse_database(v).map(|p| p.display().to_string());
+        assert_eq!(file("sqlite://cohortforge.db").unwrap(), "cohortforge.db");
+        assert_eq!(file("sqlite:///srv/data/c.db").unwrap(), "/srv/data/c.db");
+        assert_eq!(file("sqlite:c.db").unwrap(), "c.db");
+        assert_eq!(file("data/c.db").unwrap(), "data/c.db");
+        assert!(
+            file("postgres://u@h/db")
+                .unwrap_err()
+                .contains("PostgreSQL")
+        );
+        assert!(file("mysql://h/db").unwrap_err().contains("mysql://"));
+        assert!(file("sqlite://").is_err());
+        assert!(file("sqlite://c.db?mode=ro").is_err());
     }
 
     #[test]

@@ -158,3 +158,14 @@ fn a_file_that_is_not_a_model_is_a_clear_error() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(stderr.contains("not a cohortforge model file"), "{stderr}");
 }
+
+#[test]
+fn a_database_the_build_cannot_open_is_refused_with_what_to_give() {
+    let output = Command::new(env!("CARGO_BIN_EXE_cohortforge"))
+        .args(["worker", "--database", "postgres://user@db.example/cohorts"])
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("sqlite://FILE"), "{stderr}");
+}

@@ -32,7 +32,7 @@ impl WorkerProcess {
         let child = Command::new(env!("CARGO_BIN_EXE_cohortforge"))
             .args(["worker", "--workers", "1"])
             .arg("--database")
-            .arg(database)
+            .arg(format!("sqlite://{}", database.display()))
             .args(["--bind", &format!("127.0.0.1:{port}")])
             .args(["--lease-seconds", &LEASE_SECONDS.to_string()])
             .env("COHORTFORGE_LOG", "warn")
