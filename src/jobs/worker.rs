@@ -176,7 +176,7 @@ impl Worker {
             )
         };
         let (ended, written) = match outcome {
-            Ok(Ok(output)) => ("succeeded", self.complete(&job, output)),
+            Ok(Ok(output)) => self.complete(&job, output),
             Ok(Err(RunError::Model(ModelError::Cancelled(_))))
                 if flags.shutdown.load(Ordering::SeqCst) =>
             {
@@ -199,8 +199,9 @@ impl Worker {
             }
         };
         let outcome = match written {
+            Ok(true) => ended,
             Ok(false) => "lease_lost",
-            _ => ended,
+            Err(_) => "not_recorded",
         };
         crate::telemetry::record_job_run(
             job.kind.as_str(),
@@ -215,13 +216,27 @@ impl Worker {
         }
     }
 
-    /// Stores what a job produced; false when the lease was lost.
-    fn complete(&self, job: &Job, output: JobOutput) -> Result<bool, crate::store::StoreError> {
+    /// Stores what a job produced: the job's final status, and false when the lease was
+    /// lost.
+    fn complete(
+        &self,
+        job: &Job,
+        output: JobOutput,
+    ) -> (&'static str, Result<bool, crate::store::StoreError>) {
+        let failed = |error: &str| {
+            let finished = self
+                .store
+                .finish_job(&job.id, &self.id, JobStatus::Failed, Some(error));
+            ("failed", self.handle.block_on(finished))
+        };
         match (output, job.cohort_id.as_deref()) {
-            (JobOutput::Model(model), _) => self
-                .handle
-                .block_on(self.store.complete_job(&job.id, &self.id, *model))
-                .map(|m| m.is_some()),
+            (JobOutput::Model(model), _) => {
+                let stored = self.store.complete_job(&job.id, &self.id, *model);
+                (
+                    "succeeded",
+                    self.handle.block_on(stored).map(|m| m.is_some()),
+                )
+            }
             (JobOutput::Cohort(drawn), Some(cohort_id)) => {
                 let stored = self.handle.block_on(self.store.complete_cohort_job(
                     &job.id,
@@ -229,24 +244,13 @@ impl Worker {
                     cohort_id,
                     drawn.report,
                     drawn.members,
-                ))?;
-                if stored {
-                    return Ok(true);
+                ));
+                match stored {
+                    Ok(false) => failed("the cohort was deleted while it was drawn"),
+                    other => ("succeeded", other),
                 }
-                let error = "the cohort was deleted while it was drawn";
-                self.handle.block_on(self.store.finish_job(
-                    &job.id,
-                    &self.id,
-                    JobStatus::Failed,
-                    Some(error),
-                ))
             }
-            (JobOutput::Cohort(_), None) => self.handle.block_on(self.store.finish_job(
-                &job.id,
-                &self.id,
-                JobStatus::Failed,
-                Some("a cohort job without a cohort"),
-            )),
+            (JobOutput::Cohort(_), None) => failed("a cohort job without a cohort"),
         }
     }
 
