@@ -220,40 +220,35 @@ pub async fn run(
     store: Store,
     shutdown: CancellationToken,
 ) -> std::io::Result<()> {
-    let wake = Arc::new(Notify::new());
-    let pool = start_pool(
-        &store,
-        config.workers,
-        config.lease_seconds,
-        &wake,
-        &shutdown,
-    )?;
+    let (pool, wake) = start_pool(&store, config.workers, config.lease_seconds, &shutdown)?;
     let served = serve(listener, config, store, wake, shutdown.clone()).await;
     shutdown.cancel();
     let _ = tokio::task::spawn_blocking(move || pool.join()).await;
     served
 }
 
-/// Starts `workers` job workers on the current runtime with leases of `lease_seconds`.
+/// Starts `workers` job workers on the current runtime with leases of `lease_seconds`, and
+/// the notifier that wakes them when a job is queued.
 fn start_pool(
     store: &Store,
     workers: usize,
     lease_seconds: u64,
-    wake: &Arc<Notify>,
     shutdown: &CancellationToken,
-) -> std::io::Result<WorkerPool> {
+) -> std::io::Result<(WorkerPool, Arc<Notify>)> {
+    let wake = Arc::new(Notify::new());
     let settings = WorkerSettings {
         lease: std::time::Duration::from_secs(lease_seconds),
         ..WorkerSettings::default()
     };
-    WorkerPool::start(
+    let pool = WorkerPool::start(
         store.clone(),
         workers,
         tokio::runtime::Handle::current(),
         wake.clone(),
         shutdown.clone(),
         settings,
-    )
+    )?;
+    Ok((pool, wake))
 }
 
 /// Runs a worker process: `config.workers` workers that poll the shared database for jobs,
@@ -266,14 +261,7 @@ pub async fn run_workers(
     shutdown: CancellationToken,
 ) -> std::io::Result<()> {
     crate::telemetry::init();
-    let wake = Arc::new(Notify::new());
-    let pool = start_pool(
-        &store,
-        config.workers,
-        config.lease_seconds,
-        &wake,
-        &shutdown,
-    )?;
+    let (pool, wake) = start_pool(&store, config.workers, config.lease_seconds, &shutdown)?;
     let state = AppState::new(&Config::local(config.database.clone()), store, wake);
     let (router, _) = OpenApiRouter::new()
         .merge(ops::router())
