@@ -18,7 +18,7 @@ async fn start(dir: &std::path::Path) -> (String, CancellationToken) {
         workers: 1,
         ..Config::local(dir.join("bench.db"))
     };
-    let store = Store::open(&config.database).await.expect("database");
+    let store = Store::connect(&config.database).await.expect("database");
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
         .await
         .expect("bind");

@@ -1,7 +1,8 @@
 //! Queue throughput: jobs claimed and finished per second by several workers, each with its
-//! own connections to one database file, as separate worker processes have.
+//! own connections to one database, as separate worker processes have.
 //!
-//! `cargo run --release --example queue_claims -- [jobs] [workers]` (defaults 2000, 4):
+//! `cargo run --release --example queue_claims -- [jobs] [workers] [--database URL]`
+//! (defaults 2000, 4, a new SQLite file; a `postgres://` URL must name an empty database):
 //! queues `jobs` empty jobs, then `workers` workers claim and finish them as fast as the
 //! queue lets them (no fit: the queue's own cost). Prints claims per second, each job's
 //! claim count (every job must be claimed exactly once), and the time to queue the jobs.
@@ -9,22 +10,25 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use cohortforge::store::Store;
 use cohortforge::store::jobs::{JobStatus, NewJob};
+use cohortforge::store::{Location, Store};
 
 #[tokio::main(flavor = "multi_thread")]
 async fn main() {
-    let args: Vec<usize> = std::env::args()
-        .skip(1)
-        .filter_map(|a| a.parse().ok())
-        .collect();
+    let raw: Vec<String> = std::env::args().skip(1).collect();
+    let database = raw
+        .iter()
+        .position(|a| a == "--database")
+        .and_then(|i| raw.get(i + 1))
+        .map(|url| Location::parse(url).expect("a database URL"));
+    let args: Vec<usize> = raw.iter().filter_map(|a| a.parse().ok()).collect();
     let (jobs, workers) = (
         args.first().copied().unwrap_or(2000),
         args.get(1).copied().unwrap_or(4),
     );
     let dir = tempfile::tempdir().expect("temporary directory");
-    let path = dir.path().join("queue.db");
-    let store = Store::open(&path).await.expect("database");
+    let location = database.unwrap_or_else(|| Location::Sqlite(dir.path().join("queue.db")));
+    let store = Store::connect(&location).await.expect("database");
     let started = Instant::now();
     for k in 0..jobs {
         let new = NewJob {
@@ -44,8 +48,8 @@ async fn main() {
     let started = Instant::now();
     let mut tasks = tokio::task::JoinSet::new();
     for w in 0..workers {
-        // Each worker opens the file itself, as a process of its own would.
-        let store = Store::open(&path).await.expect("database");
+        // Each worker opens the database itself, as a process of its own would.
+        let store = Store::connect(&location).await.expect("database");
         tasks.spawn(async move {
             let name = format!("worker-{w}");
             let mut claimed = Vec::new();
@@ -71,7 +75,7 @@ async fn main() {
     let seconds = started.elapsed().as_secs_f64();
     let once = counts.values().all(|&c| c == 1) && counts.len() == jobs;
     println!(
-        "{jobs} jobs queued in {queued:.2} s ({:.0}/s); claimed and finished by {workers} \
+        "{location}: {jobs} jobs queued in {queued:.2} s ({:.0}/s); claimed and finished by {workers} \
          workers in {seconds:.2} s: {:.0} claims/s; per worker {per_worker:?}; every job \
          claimed exactly once: {once}",
         jobs as f64 / queued,

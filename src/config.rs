@@ -1,8 +1,8 @@
 //! Service configuration: one struct, filled from flags or `COHORTFORGE_*` environment
 //! variables, validated once at start.
 
+use crate::store::Location;
 use std::net::SocketAddr;
-use std::path::PathBuf;
 
 /// Configuration of the HTTP service. Each flag also reads an environment variable.
 #[derive(clap::Args, Debug, Clone)]
@@ -12,10 +12,11 @@ pub struct Config {
     pub bind: SocketAddr,
 
     /// Database: `sqlite://FILE` or a bare file path (SQLite; created with its tables when
-    /// missing).
+    /// missing), or `postgres://USER:PASSWORD@HOST:PORT/DATABASE` (PostgreSQL, shared by
+    /// API replicas and worker processes on several machines).
     #[arg(long, env = "COHORTFORGE_DATABASE", default_value = "sqlite://cohortforge.db",
         value_parser = parse_database)]
-    pub database: PathBuf,
+    pub database: Location,
 
     /// Largest accepted request body in bytes (uploads included).
     #[arg(long, env = "COHORTFORGE_MAX_BODY_BYTES", default_value_t = 256 * 1024 * 1024)]
@@ -66,10 +67,11 @@ pub struct WorkerConfig {
     )]
     pub bind: SocketAddr,
 
-    /// Database of the API processes: `sqlite://FILE` or a bare file path.
+    /// Database of the API processes: `sqlite://FILE`, a bare file path or
+    /// `postgres://USER:PASSWORD@HOST:PORT/DATABASE`.
     #[arg(long, env = "COHORTFORGE_DATABASE", default_value = "sqlite://cohortforge.db",
         value_parser = parse_database)]
-    pub database: PathBuf,
+    pub database: Location,
 
     /// Number of worker threads that run jobs.
     #[arg(long, env = "COHORTFORGE_WORKERS", default_value_t = 1)]
@@ -93,33 +95,10 @@ impl WorkerConfig {
     }
 }
 
-/// The SQLite file of a `--database` value: `sqlite://FILE` (`sqlite:///abs/path` for an
-/// absolute path), `sqlite:FILE`, or a bare path.
-pub fn parse_database(value: &str) -> Result<PathBuf, String> {
-    let scheme = value.split_once("://").map(|(s, _)| s.to_ascii_lowercase());
-    if let Some("postgres" | "postgresql") = scheme.as_deref() {
-        return Err(
-            "PostgreSQL is not supported by this version yet; give a SQLite file \
-             (sqlite://FILE or a path)"
-                .into(),
-        );
-    }
-    let path = value
-        .strip_prefix("sqlite://")
-        .or_else(|| value.strip_prefix("sqlite:"))
-        .unwrap_or(value);
-    if let Some(other) = scheme.filter(|s| s != "sqlite") {
-        return Err(format!(
-            "unknown database scheme {other}://; give sqlite://FILE or a file path"
-        ));
-    }
-    if path.is_empty() || path.contains('?') {
-        return Err(format!(
-            "{value:?} names no database file; give sqlite://FILE or a file path \
-             (options after '?' are not supported)"
-        ));
-    }
-    Ok(PathBuf::from(path))
+/// A `--database` value: `sqlite://FILE` (`sqlite:///abs/path` for an absolute path),
+/// `sqlite:FILE`, a bare path, or `postgres://…`.
+pub fn parse_database(value: &str) -> Result<Location, String> {
+    Location::parse(value)
 }
 
 /// A configuration that cannot start the service.
@@ -147,10 +126,10 @@ pub const MIN_TOKEN_CHARS: usize = 16;
 
 impl Config {
     /// A configuration for tests and embedding: loopback, given database, no tokens.
-    pub fn local(database: PathBuf) -> Self {
+    pub fn local(database: impl Into<Location>) -> Self {
         Self {
             bind: SocketAddr::from(([127, 0, 0, 1], 0)),
-            database,
+            database: database.into(),
             max_body_bytes: 256 * 1024 * 1024,
             max_vertices: 1_000_000,
             workers: 1,
@@ -197,10 +176,11 @@ impl Config {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::PathBuf;
 
     #[test]
     fn open_service_only_on_loopback() {
-        let mut c = Config::local("x.db".into());
+        let mut c = Config::local(PathBuf::from("x.db"));
         assert!(c.validate().is_ok());
         c.bind = "0.0.0.0:8080".parse().unwrap();
         assert!(matches!(c.validate(), Err(ConfigError::OpenNonLoopback(_))));
@@ -212,25 +192,8 @@ mod tests {
     }
 
     #[test]
-    fn database_urls_and_bare_paths_name_a_sqlite_file() {
-        let file = |v: &str| parse_database(v).map(|p| p.display().to_string());
-        assert_eq!(file("sqlite://cohortforge.db").unwrap(), "cohortforge.db");
-        assert_eq!(file("sqlite:///srv/data/c.db").unwrap(), "/srv/data/c.db");
-        assert_eq!(file("sqlite:c.db").unwrap(), "c.db");
-        assert_eq!(file("data/c.db").unwrap(), "data/c.db");
-        assert!(
-            file("postgres://u@h/db")
-                .unwrap_err()
-                .contains("PostgreSQL")
-        );
-        assert!(file("mysql://h/db").unwrap_err().contains("mysql://"));
-        assert!(file("sqlite://").is_err());
-        assert!(file("sqlite://c.db?mode=ro").is_err());
-    }
-
-    #[test]
     fn short_or_lonely_tokens_are_refused() {
-        let mut c = Config::local("x.db".into());
+        let mut c = Config::local(PathBuf::from("x.db"));
         c.admin_token = Some("short".into());
         assert!(matches!(c.validate(), Err(ConfigError::TokenTooShort(_))));
         c.admin_token = None;

@@ -20,7 +20,7 @@ use tokio_util::sync::CancellationToken;
 
 use crate::config::{Config, WorkerConfig};
 use crate::mesh::{Format, io, phantom};
-use crate::store::Store;
+use crate::store::{Location, Store};
 
 /// Generative models of anatomical shape, served as virtual cohorts.
 #[derive(Parser, Debug)]
@@ -132,7 +132,12 @@ fn worker(config: WorkerConfig) -> CliResult {
 
 /// Opens the database, binds `bind` and runs `service` until SIGINT or SIGTERM, then
 /// closes the database.
-fn run_process<F, Fut>(database: &Path, bind: SocketAddr, started: &str, service: F) -> CliResult
+fn run_process<F, Fut>(
+    database: &Location,
+    bind: SocketAddr,
+    started: &str,
+    service: F,
+) -> CliResult
 where
     F: FnOnce(tokio::net::TcpListener, Store, CancellationToken) -> Fut,
     Fut: std::future::Future<Output = std::io::Result<()>>,
@@ -142,13 +147,13 @@ where
         .build()
         .map_err(|e| e.to_string())?;
     runtime.block_on(async move {
-        let store = Store::open(database)
+        let store = Store::connect(database)
             .await
-            .map_err(|e| format!("cannot open database {}: {e}", database.display()))?;
+            .map_err(|e| format!("cannot open database {database}: {e}"))?;
         let listener = tokio::net::TcpListener::bind(bind)
             .await
             .map_err(|e| format!("cannot listen on {bind}: {e}"))?;
-        tracing::info!(bind = %bind, database = %database.display(), "{started}");
+        tracing::info!(bind = %bind, database = %database, "{started}");
         let shutdown = CancellationToken::new();
         tokio::spawn(stop_on_signal(shutdown.clone()));
         service(listener, store.clone(), shutdown)

@@ -68,6 +68,8 @@ impl WorkerPool {
                 settings.poll,
                 shutdown.clone(),
             ));
+            let (listener, wake, stop) = (store.clone(), wake.clone(), shutdown.clone());
+            handle.spawn(async move { listener.forward_job_notifications(wake, stop).await });
         }
         let instance = uuid::Uuid::new_v4().simple().to_string();
         let mut threads = Vec::with_capacity(count);

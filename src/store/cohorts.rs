@@ -1,7 +1,7 @@
 //! Virtual cohorts: the request, the acceptance report and each member's geometry.
 
-use sqlx::sqlite::SqliteRow;
-use sqlx::{AssertSqlSafe, Row, Sqlite, Transaction};
+use sqlx::any::AnyRow;
+use sqlx::{Any, AssertSqlSafe, Row, Transaction};
 
 use super::jobs::{JobProgress, JobStatus, queued_progress};
 use super::{Page, Store, StoreError, new_id, now};
@@ -99,7 +99,7 @@ const SELECT_COHORT: &str = "SELECT c.id, c.model_id, c.request, c.report, c.cre
      (SELECT COUNT(*) FROM cohort_members m WHERE m.cohort_id = c.id) AS member_count \
      FROM cohorts c LEFT JOIN jobs j ON j.id = c.job_id";
 
-fn cohort_record(row: &SqliteRow) -> Result<CohortRecord, StoreError> {
+fn cohort_record(row: &AnyRow) -> Result<CohortRecord, StoreError> {
     let job_id: Option<String> = row.try_get("job_id")?;
     let status = match row.try_get::<Option<String>, _>("job_status")? {
         Some(s) => JobStatus::parse(&s)?,
@@ -134,18 +134,19 @@ fn cohort_record(row: &SqliteRow) -> Result<CohortRecord, StoreError> {
 }
 
 async fn insert_members(
-    tx: &mut Transaction<'_, Sqlite>,
+    tx: &mut Transaction<'_, Any>,
     cohort_id: &str,
     members: Vec<NewMember>,
 ) -> Result<(), StoreError> {
     for member in members {
         sqlx::query(
             "INSERT INTO cohort_members (cohort_id, member, summary, geometry, mesh_sha256) \
-             VALUES (?, ?, ?, X'', ?)",
+             VALUES ($1, $2, $3, $4, $5)",
         )
         .bind(cohort_id)
         .bind(member.index as i64)
         .bind(member.summary.to_string())
+        .bind(Vec::<u8>::new())
         .bind(&member.mesh_sha256)
         .execute(&mut **tx)
         .await?;
@@ -153,7 +154,19 @@ async fn insert_members(
     Ok(())
 }
 
-fn json(row: &SqliteRow, column: &str) -> Result<serde_json::Value, StoreError> {
+/// A foreign-key refusal (the model was deleted while the cohort was written) as the
+/// model's not-found; other errors unchanged.
+fn model_deleted(model_id: &str) -> impl Fn(StoreError) -> StoreError + '_ {
+    move |e| {
+        if e.is_foreign_key_violation() {
+            StoreError::not_found("model", model_id)
+        } else {
+            e
+        }
+    }
+}
+
+fn json(row: &AnyRow, column: &str) -> Result<serde_json::Value, StoreError> {
     let text: String = row.try_get(column)?;
     serde_json::from_str(&text).map_err(|e| StoreError::Corrupt(format!("cohorts.{column}: {e}")))
 }
@@ -169,7 +182,7 @@ impl Store {
     ) -> Result<String, StoreError> {
         let id = new_id();
         let mut tx = self.begin_write().await?;
-        let exists: Option<i64> = sqlx::query_scalar("SELECT 1 FROM models WHERE id = ?")
+        let exists: Option<i64> = sqlx::query_scalar("SELECT 1 FROM models WHERE id = $1")
             .bind(model_id)
             .fetch_optional(&mut *tx)
             .await?;
@@ -177,10 +190,11 @@ impl Store {
             return Err(StoreError::not_found("model", model_id));
         }
         let size = members.len() as i64;
-        sqlx::query(
+        sqlx::query(AssertSqlSafe(format!(
             "INSERT INTO cohorts (id, model_id, request, report, created_at, size, seq) VALUES \
-             (?, ?, ?, ?, ?, ?, (SELECT COALESCE(MAX(seq), 0) + 1 FROM cohorts))",
-        )
+             ($1, $2, $3, $4, $5, $6, {})",
+            self.dialect.next_seq("cohorts")
+        )))
         .bind(&id)
         .bind(model_id)
         .bind(request.to_string())
@@ -188,7 +202,8 @@ impl Store {
         .bind(now())
         .bind(size)
         .execute(&mut *tx)
-        .await?;
+        .await
+        .map_err(|e| model_deleted(model_id)(e.into()))?;
         insert_members(&mut tx, &id, members).await?;
         tx.commit().await?;
         Ok(id)
@@ -198,18 +213,18 @@ impl Store {
     /// Returns the cohort's id.
     pub async fn queue_cohort(&self, new: NewCohortJob) -> Result<String, StoreError> {
         let mut tx = self.begin_write().await?;
-        let model = sqlx::query("SELECT dataset_id, model_type FROM models WHERE id = ?")
+        let model = sqlx::query("SELECT dataset_id, model_type FROM models WHERE id = $1")
             .bind(&new.model_id)
             .fetch_optional(&mut *tx)
             .await?
             .ok_or_else(|| StoreError::not_found("model", &new.model_id))?;
         let (id, job_id) = (new_id(), new_id());
-        sqlx::query(
+        sqlx::query(AssertSqlSafe(format!(
             "INSERT INTO jobs (id, kind, dataset_id, model_type, params, seed, holdout_fraction, \
              status, progress, model_id, cohort_id, max_attempts, request_hash, created_at, seq) \
-             VALUES (?, 'cohort', ?, ?, ?, ?, 0, 'queued', ?, ?, ?, ?, '', ?, \
-             (SELECT COALESCE(MAX(seq), 0) + 1 FROM jobs))",
-        )
+             VALUES ($1, 'cohort', $2, $3, $4, $5, 0, 'queued', $6, $7, $8, $9, '', $10, {})",
+            self.dialect.next_seq("jobs")
+        )))
         .bind(&job_id)
         .bind(model.try_get::<String, _>("dataset_id")?)
         .bind(model.try_get::<String, _>("model_type")?)
@@ -222,10 +237,11 @@ impl Store {
         .bind(now())
         .execute(&mut *tx)
         .await?;
-        sqlx::query(
+        sqlx::query(AssertSqlSafe(format!(
             "INSERT INTO cohorts (id, model_id, request, report, created_at, size, job_id, seq) \
-             VALUES (?, ?, ?, 'null', ?, ?, ?, (SELECT COALESCE(MAX(seq), 0) + 1 FROM cohorts))",
-        )
+             VALUES ($1, $2, $3, 'null', $4, $5, $6, {})",
+            self.dialect.next_seq("cohorts")
+        )))
         .bind(&id)
         .bind(&new.model_id)
         .bind(new.request.to_string())
@@ -233,7 +249,9 @@ impl Store {
         .bind(new.size as i64)
         .bind(&job_id)
         .execute(&mut *tx)
-        .await?;
+        .await
+        .map_err(|e| model_deleted(&new.model_id)(e.into()))?;
+        self.notify_job_queued(&mut tx).await?;
         tx.commit().await?;
         Ok(id)
     }
@@ -249,27 +267,15 @@ impl Store {
         members: Vec<NewMember>,
     ) -> Result<bool, StoreError> {
         let mut tx = self.begin_write().await?;
-        let held = sqlx::query(
-            "UPDATE jobs SET status = 'succeeded', finished_at = ?, lease_owner = NULL, \
-             lease_expires_at = NULL, \
-             progress = json_set(progress, '$.fraction', 1.0, '$.stage', 'done', \
-                                 '$.message', 'cohort stored') \
-             WHERE id = ? AND lease_owner = ? AND status = 'running'",
-        )
-        .bind(now())
-        .bind(job_id)
-        .bind(worker)
-        .execute(&mut *tx)
-        .await?
-        .rows_affected();
-        let cohort = sqlx::query("UPDATE cohorts SET report = ? WHERE id = ? AND job_id = ?")
+        let held = Self::succeed_job_in(&mut tx, job_id, worker, None, "cohort stored").await?;
+        let cohort = sqlx::query("UPDATE cohorts SET report = $1 WHERE id = $2 AND job_id = $3")
             .bind(report.to_string())
             .bind(cohort_id)
             .bind(job_id)
             .execute(&mut *tx)
             .await?
             .rows_affected();
-        if held == 0 || cohort == 0 {
+        if !held || cohort == 0 {
             return Ok(false);
         }
         insert_members(&mut tx, cohort_id, members).await?;
@@ -282,7 +288,7 @@ impl Store {
     pub async fn cohort(&self, id: &str) -> Result<CohortRecord, StoreError> {
         let mut record = self.cohort_head(id).await?.drawn()?;
         record.members =
-            sqlx::query("SELECT summary FROM cohort_members WHERE cohort_id = ? ORDER BY member")
+            sqlx::query("SELECT summary FROM cohort_members WHERE cohort_id = $1 ORDER BY member")
                 .bind(id)
                 .fetch_all(&self.read)
                 .await?
@@ -294,7 +300,7 @@ impl Store {
 
     /// A cohort with its report and status, without member summaries.
     pub async fn cohort_head(&self, id: &str) -> Result<CohortRecord, StoreError> {
-        let row = sqlx::query(AssertSqlSafe(format!("{SELECT_COHORT} WHERE c.id = ?")))
+        let row = sqlx::query(AssertSqlSafe(format!("{SELECT_COHORT} WHERE c.id = $1")))
             .bind(id)
             .fetch_optional(&self.read)
             .await?
@@ -310,8 +316,8 @@ impl Store {
     ) -> Result<(Vec<serde_json::Value>, i64), StoreError> {
         let head = self.cohort_head(id).await?.drawn()?;
         let items = sqlx::query(
-            "SELECT summary FROM cohort_members WHERE cohort_id = ? ORDER BY member \
-             LIMIT ? OFFSET ?",
+            "SELECT summary FROM cohort_members WHERE cohort_id = $1 ORDER BY member \
+             LIMIT $2 OFFSET $3",
         )
         .bind(id)
         .bind(page.limit)
@@ -333,7 +339,7 @@ impl Store {
         self.cohort_head(cohort_id).await?.drawn()?;
         let row = sqlx::query(
             "SELECT geometry, mesh_sha256, summary FROM cohort_members \
-             WHERE cohort_id = ? AND member = ?",
+             WHERE cohort_id = $1 AND member = $2",
         )
         .bind(cohort_id)
         .bind(index)
@@ -350,7 +356,7 @@ impl Store {
     ) -> Result<Vec<MemberGeometry>, StoreError> {
         self.cohort_head(cohort_id).await?.drawn()?;
         sqlx::query(
-            "SELECT geometry, mesh_sha256, summary FROM cohort_members WHERE cohort_id = ? \
+            "SELECT geometry, mesh_sha256, summary FROM cohort_members WHERE cohort_id = $1 \
              ORDER BY member",
         )
         .bind(cohort_id)
@@ -362,7 +368,7 @@ impl Store {
     }
 }
 
-fn member_geometry(row: &SqliteRow) -> Result<MemberGeometry, StoreError> {
+fn member_geometry(row: &AnyRow) -> Result<MemberGeometry, StoreError> {
     let blob: Vec<u8> = row.try_get("geometry")?;
     if !blob.is_empty() {
         return codec::decode(&blob)

@@ -46,7 +46,7 @@ impl Store {
         };
         sqlx::query(
             "INSERT INTO datasets (id, name, organ, target_vertices, created_at) \
-             VALUES (?, ?, ?, ?, ?)",
+             VALUES ($1, $2, $3, $4, $5)",
         )
         .bind(&dataset.id)
         .bind(&dataset.name)
@@ -60,7 +60,7 @@ impl Store {
 
     /// One dataset with its mesh count.
     pub async fn dataset(&self, id: &str) -> Result<Dataset, StoreError> {
-        sqlx::query_as::<_, Dataset>(AssertSqlSafe(format!("{SELECT_DATASET} WHERE d.id = ?")))
+        sqlx::query_as::<_, Dataset>(AssertSqlSafe(format!("{SELECT_DATASET} WHERE d.id = $1")))
             .bind(id)
             .fetch_optional(&self.read)
             .await?
@@ -70,7 +70,8 @@ impl Store {
     /// A page of datasets, oldest first, and the total count.
     pub async fn datasets(&self, page: Page) -> Result<(Vec<Dataset>, i64), StoreError> {
         let items = sqlx::query_as::<_, Dataset>(AssertSqlSafe(format!(
-            "{SELECT_DATASET} ORDER BY d.created_at, d.rowid LIMIT ? OFFSET ?"
+            "{SELECT_DATASET} ORDER BY {} LIMIT $1 OFFSET $2",
+            self.dialect.dataset_order()
         )))
         .bind(page.limit)
         .bind(page.offset)
@@ -84,7 +85,7 @@ impl Store {
 
     /// Deletes a dataset and its meshes.
     pub async fn delete_dataset(&self, id: &str) -> Result<(), StoreError> {
-        let done = sqlx::query("DELETE FROM datasets WHERE id = ?")
+        let done = sqlx::query("DELETE FROM datasets WHERE id = $1")
             .bind(id)
             .execute(&self.write)
             .await?;

@@ -53,6 +53,17 @@ pub enum StoreError {
 }
 
 impl StoreError {
+    /// Whether a unique constraint refused the write: another request stored the same
+    /// thing first.
+    pub fn is_unique_violation(&self) -> bool {
+        matches!(self, Self::Database(sqlx::Error::Database(e)) if e.is_unique_violation())
+    }
+
+    /// Whether a foreign key refused the write: what it refers to was deleted meanwhile.
+    pub fn is_foreign_key_violation(&self) -> bool {
+        matches!(self, Self::Database(sqlx::Error::Database(e)) if e.is_foreign_key_violation())
+    }
+
     pub(crate) fn not_found(entity: &'static str, id: &str) -> Self {
         Self::NotFound {
             entity,

@@ -6,7 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 use sqlx::Row;
-use sqlx::sqlite::SqliteRow;
+use sqlx::any::AnyRow;
 use utoipa::ToSchema;
 
 use sqlx::AssertSqlSafe;
@@ -184,7 +184,7 @@ fn corrupt(column: &str, e: impl std::fmt::Display) -> StoreError {
     StoreError::Corrupt(format!("jobs.{column}: {e}"))
 }
 
-fn job(row: &SqliteRow) -> Result<Job, StoreError> {
+fn job(row: &AnyRow) -> Result<Job, StoreError> {
     let params: String = row.try_get("params")?;
     let progress: String = row.try_get("progress")?;
     let seed: i64 = row.try_get("seed")?;
@@ -208,70 +208,108 @@ fn job(row: &SqliteRow) -> Result<Job, StoreError> {
     })
 }
 
-/// The progress of a job waiting for a worker, as stored.
-pub(super) fn queued_progress() -> Result<String, StoreError> {
+/// The progress of a job at `stage`, as stored.
+fn progress_text(stage: &str, message: &str) -> Result<String, StoreError> {
     serde_json::to_string(&JobProgress {
-        stage: "queued".into(),
-        message: "waiting for a worker".into(),
+        stage: stage.into(),
+        message: message.into(),
         ..JobProgress::default()
     })
     .map_err(|e| corrupt("progress", e))
 }
 
-/// Unix time in milliseconds.
-pub(crate) fn unix_ms() -> i64 {
-    chrono::Utc::now().timestamp_millis()
+/// The progress of a job waiting for a worker, as stored.
+pub(super) fn queued_progress() -> Result<String, StoreError> {
+    progress_text("queued", "waiting for a worker")
+}
+
+/// The progress of a finished job: its last progress at fraction 1 with stage `done`.
+pub(super) fn done_progress(last: &str, message: &str) -> Result<String, StoreError> {
+    let mut progress: JobProgress =
+        serde_json::from_str(last).map_err(|e| corrupt("progress", e))?;
+    progress.stage = "done".into();
+    progress.fraction = 1.0;
+    progress.message = message.into();
+    serde_json::to_string(&progress).map_err(|e| corrupt("progress", e))
 }
 
 impl Store {
     /// Queues a job. With an idempotency key already used for the same request, returns the
     /// existing job and `false`; for another request, [`StoreError::IdempotencyMismatch`].
     pub async fn submit_job(&self, new: NewJob) -> Result<(Job, bool), StoreError> {
-        let mut tx = self.begin_write().await?;
-        if let Some(key) = &new.idempotency_key {
-            let existing =
-                sqlx::query("SELECT id, request_hash FROM jobs WHERE idempotency_key = ?")
-                    .bind(key)
-                    .fetch_optional(&mut *tx)
-                    .await?;
-            if let Some(row) = existing {
-                let hash: String = row.try_get("request_hash")?;
-                let id: String = row.try_get("id")?;
-                tx.commit().await?;
-                if hash != new.request_hash {
-                    return Err(StoreError::IdempotencyMismatch { existing_id: id });
-                }
-                return Ok((self.job(&id).await?, false));
-            }
+        if let Some(found) = self.idempotent_replay(&new).await? {
+            return Ok((found, false));
         }
+        match self.insert_job(&new).await {
+            Ok(created) => Ok((created, true)),
+            // Another process inserted the same key meanwhile (PostgreSQL, where the read
+            // and the insert do not hold one lock): answer as if it had come first.
+            Err(e) if e.is_unique_violation() && new.idempotency_key.is_some() => {
+                match self.idempotent_replay(&new).await? {
+                    Some(found) => Ok((found, false)),
+                    None => Err(e),
+                }
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// The job already created with `new`'s idempotency key, if any.
+    async fn idempotent_replay(&self, new: &NewJob) -> Result<Option<Job>, StoreError> {
+        let Some(key) = &new.idempotency_key else {
+            return Ok(None);
+        };
+        let existing = sqlx::query("SELECT id, request_hash FROM jobs WHERE idempotency_key = $1")
+            .bind(key)
+            .fetch_optional(&self.write)
+            .await?;
+        let Some(row) = existing else {
+            return Ok(None);
+        };
+        let hash: String = row.try_get("request_hash")?;
+        let id: String = row.try_get("id")?;
+        if hash != new.request_hash {
+            return Err(StoreError::IdempotencyMismatch { existing_id: id });
+        }
+        Ok(Some(self.job(&id).await?))
+    }
+
+    /// Inserts a queued job; returns it as committed (a worker may claim it at once).
+    async fn insert_job(&self, new: &NewJob) -> Result<Job, StoreError> {
+        let mut tx = self.begin_write().await?;
         let id = new_id();
-        let progress = queued_progress()?;
-        sqlx::query(
+        sqlx::query(AssertSqlSafe(format!(
             "INSERT INTO jobs (id, dataset_id, model_type, params, seed, holdout_fraction, status, \
              progress, max_attempts, idempotency_key, request_hash, created_at, seq) \
-             VALUES (?, ?, ?, ?, ?, ?, 'queued', ?, ?, ?, ?, ?, \
-             (SELECT COALESCE(MAX(seq), 0) + 1 FROM jobs))",
-        )
+             VALUES ($1, $2, $3, $4, $5, $6, 'queued', $7, $8, $9, $10, $11, {})",
+            self.dialect.next_seq("jobs")
+        )))
         .bind(&id)
         .bind(&new.dataset_id)
         .bind(&new.model_type)
         .bind(new.params.to_string())
         .bind(new.seed as i64)
         .bind(new.holdout_fraction)
-        .bind(progress)
+        .bind(queued_progress()?)
         .bind(new.max_attempts)
         .bind(&new.idempotency_key)
         .bind(&new.request_hash)
         .bind(now())
         .execute(&mut *tx)
         .await?;
+        let created = sqlx::query(AssertSqlSafe(format!("{SELECT_JOB} WHERE id = $1")))
+            .bind(&id)
+            .fetch_one(&mut *tx)
+            .await?;
+        let created = job(&created)?;
+        self.notify_job_queued(&mut tx).await?;
         tx.commit().await?;
-        Ok((self.job(&id).await?, true))
+        Ok(created)
     }
 
     /// One job.
     pub async fn job(&self, id: &str) -> Result<Job, StoreError> {
-        let row = sqlx::query(AssertSqlSafe(format!("{SELECT_JOB} WHERE id = ?")))
+        let row = sqlx::query(AssertSqlSafe(format!("{SELECT_JOB} WHERE id = $1")))
             .bind(id)
             .fetch_optional(&self.read)
             .await?
@@ -288,9 +326,9 @@ impl Store {
     ) -> Result<(Vec<Job>, i64), StoreError> {
         let filter = status.map(JobStatus::as_str);
         let kind = kind.map(JobKind::as_str);
-        const WHERE: &str = "WHERE (?1 IS NULL OR status = ?1) AND (?2 IS NULL OR kind = ?2)";
+        const WHERE: &str = "WHERE ($1 IS NULL OR status = $1) AND ($2 IS NULL OR kind = $2)";
         let rows = sqlx::query(AssertSqlSafe(format!(
-            "{SELECT_JOB} {WHERE} ORDER BY seq DESC LIMIT ?3 OFFSET ?4"
+            "{SELECT_JOB} {WHERE} ORDER BY seq DESC LIMIT $3 OFFSET $4"
         )))
         .bind(filter)
         .bind(kind)
@@ -307,48 +345,52 @@ impl Store {
         Ok((rows.iter().map(job).collect::<Result<_, _>>()?, total))
     }
 
-    /// Requeues running jobs whose lease expired, or fails those out of attempts.
-    /// Returns how many were requeued and how many failed.
+    /// Requeues running jobs whose lease expired on the database's clock, or fails those out
+    /// of attempts. Returns how many were requeued and how many failed.
     pub async fn recover_expired_leases(&self) -> Result<(u64, u64), StoreError> {
-        let now_ms = unix_ms();
+        let now_ms = self.dialect.now_ms();
         let mut tx = self.begin_write().await?;
-        let failed = sqlx::query(
+        let failed = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET status = 'failed', lease_owner = NULL, lease_expires_at = NULL, \
-             finished_at = ?, error = 'the worker running this job stopped ' || attempts || \
+             finished_at = $1, error = 'the worker running this job stopped ' || attempts || \
              ' times (process crash or restart); giving up' \
-             WHERE status = 'running' AND lease_expires_at < ? AND attempts >= max_attempts",
-        )
+             WHERE status = 'running' AND lease_expires_at < {now_ms} AND attempts >= max_attempts"
+        )))
         .bind(now())
-        .bind(now_ms)
         .execute(&mut *tx)
         .await?
         .rows_affected();
-        let requeued = sqlx::query(
-            "UPDATE jobs SET status = CASE WHEN cancel_requested THEN 'cancelled' ELSE 'queued' END, \
+        let requeued = sqlx::query(AssertSqlSafe(format!(
+            "UPDATE jobs SET status = CASE WHEN cancel_requested <> 0 THEN 'cancelled' ELSE 'queued' END, \
              lease_owner = NULL, lease_expires_at = NULL \
-             WHERE status = 'running' AND lease_expires_at < ?",
-        )
-        .bind(now_ms)
+             WHERE status = 'running' AND lease_expires_at < {now_ms}"
+        )))
         .execute(&mut *tx)
         .await?
         .rows_affected();
+        if requeued > 0 {
+            self.notify_job_queued(&mut tx).await?;
+        }
         tx.commit().await?;
         Ok((requeued, failed))
     }
 
-    /// Atomically claims the oldest queued job for `worker`, with a lease of `lease_ms`.
+    /// Atomically claims the oldest queued job for `worker`, with a lease of `lease_ms` on
+    /// the database's clock. On PostgreSQL, rows another worker is claiming are skipped.
     pub async fn claim_job(&self, worker: &str, lease_ms: i64) -> Result<Option<Job>, StoreError> {
-        let row = sqlx::query(
-            "UPDATE jobs SET status = 'running', lease_owner = ?1, lease_expires_at = ?2, \
-             attempts = attempts + 1, started_at = COALESCE(started_at, ?3), \
-             progress = json_object('stage', 'starting', 'step', 0, 'total', 0, 'fraction', 0.0, \
-                                    'message', 'claimed by a worker', 'loss', NULL) \
-             WHERE id = (SELECT id FROM jobs WHERE status = 'queued' ORDER BY seq LIMIT 1) \
+        let row = sqlx::query(AssertSqlSafe(format!(
+            "UPDATE jobs SET status = 'running', lease_owner = $1, \
+             lease_expires_at = {now_ms} + $2, \
+             attempts = attempts + 1, started_at = COALESCE(started_at, $3), progress = $4 \
+             WHERE id = (SELECT id FROM jobs WHERE status = 'queued' ORDER BY seq LIMIT 1 {skip}) \
              AND status = 'queued' RETURNING id",
-        )
+            now_ms = self.dialect.now_ms(),
+            skip = self.dialect.skip_locked(),
+        )))
         .bind(worker)
-        .bind(unix_ms() + lease_ms)
+        .bind(lease_ms)
         .bind(now())
+        .bind(progress_text("starting", "claimed by a worker")?)
         .fetch_optional(&self.write)
         .await?;
         match row {
@@ -366,19 +408,20 @@ impl Store {
         lease_ms: i64,
     ) -> Result<Lease, StoreError> {
         let progress = serde_json::to_string(progress).map_err(|e| corrupt("progress", e))?;
-        let row = sqlx::query(
-            "UPDATE jobs SET progress = ?, lease_expires_at = ? \
-             WHERE id = ? AND lease_owner = ? AND status = 'running' RETURNING cancel_requested",
-        )
+        let row = sqlx::query(AssertSqlSafe(format!(
+            "UPDATE jobs SET progress = $1, lease_expires_at = {} + $2 \
+             WHERE id = $3 AND lease_owner = $4 AND status = 'running' RETURNING cancel_requested",
+            self.dialect.now_ms()
+        )))
         .bind(progress)
-        .bind(unix_ms() + lease_ms)
+        .bind(lease_ms)
         .bind(job_id)
         .bind(worker)
         .fetch_optional(&self.write)
         .await?;
         Ok(match row {
             None => Lease::Lost,
-            Some(row) if row.try_get::<bool, _>("cancel_requested")? => Lease::CancelRequested,
+            Some(row) if row.try_get::<i64, _>("cancel_requested")? != 0 => Lease::CancelRequested,
             Some(_) => Lease::Held,
         })
     }
@@ -392,8 +435,8 @@ impl Store {
         error: Option<&str>,
     ) -> Result<bool, StoreError> {
         let done = sqlx::query(
-            "UPDATE jobs SET status = ?, error = ?, finished_at = ?, lease_owner = NULL, \
-             lease_expires_at = NULL WHERE id = ? AND lease_owner = ? AND status = 'running'",
+            "UPDATE jobs SET status = $1, error = $2, finished_at = $3, lease_owner = NULL, \
+             lease_expires_at = NULL WHERE id = $4 AND lease_owner = $5 AND status = 'running'",
         )
         .bind(status.as_str())
         .bind(error)
@@ -405,16 +448,54 @@ impl Store {
         Ok(done.rows_affected() == 1)
     }
 
-    /// Gives a job back to the queue without counting the attempt (worker shutting down).
-    pub async fn release_job(&self, job_id: &str, worker: &str) -> Result<bool, StoreError> {
-        let done = sqlx::query(
-            "UPDATE jobs SET status = 'queued', lease_owner = NULL, lease_expires_at = NULL, \
-             attempts = MAX(attempts - 1, 0) WHERE id = ? AND lease_owner = ? AND status = 'running'",
+    /// Marks a job held by `worker` succeeded inside `tx`, keeping its last progress at
+    /// fraction 1. Returns false (writing nothing) when the lease was lost.
+    pub(super) async fn succeed_job_in(
+        tx: &mut sqlx::Transaction<'static, sqlx::Any>,
+        job_id: &str,
+        worker: &str,
+        model_id: Option<&str>,
+        message: &str,
+    ) -> Result<bool, StoreError> {
+        let held: Option<String> = sqlx::query_scalar(
+            "SELECT progress FROM jobs WHERE id = $1 AND lease_owner = $2 AND status = 'running'",
         )
         .bind(job_id)
         .bind(worker)
-        .execute(&self.write)
+        .fetch_optional(&mut **tx)
         .await?;
+        let Some(last) = held else {
+            return Ok(false);
+        };
+        let done = sqlx::query(
+            "UPDATE jobs SET status = 'succeeded', model_id = COALESCE($1, model_id), \
+             finished_at = $2, lease_owner = NULL, lease_expires_at = NULL, progress = $3 \
+             WHERE id = $4 AND lease_owner = $5 AND status = 'running'",
+        )
+        .bind(model_id)
+        .bind(now())
+        .bind(done_progress(&last, message)?)
+        .bind(job_id)
+        .bind(worker)
+        .execute(&mut **tx)
+        .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// Gives a job back to the queue without counting the attempt (worker shutting down).
+    pub async fn release_job(&self, job_id: &str, worker: &str) -> Result<bool, StoreError> {
+        let mut tx = self.begin_write().await?;
+        let done = sqlx::query(
+            "UPDATE jobs SET status = 'queued', lease_owner = NULL, lease_expires_at = NULL, \
+             attempts = CASE WHEN attempts > 0 THEN attempts - 1 ELSE 0 END \
+             WHERE id = $1 AND lease_owner = $2 AND status = 'running'",
+        )
+        .bind(job_id)
+        .bind(worker)
+        .execute(&mut *tx)
+        .await?;
+        self.notify_job_queued(&mut tx).await?;
+        tx.commit().await?;
         Ok(done.rows_affected() == 1)
     }
 
@@ -431,8 +512,8 @@ impl Store {
         sqlx::query(
             "UPDATE jobs SET cancel_requested = 1, \
              status = CASE WHEN status = 'queued' THEN 'cancelled' ELSE status END, \
-             finished_at = CASE WHEN status = 'queued' THEN ?1 ELSE finished_at END \
-             WHERE id = ?2",
+             finished_at = CASE WHEN status = 'queued' THEN $1 ELSE finished_at END \
+             WHERE id = $2",
         )
         .bind(now())
         .bind(id)
@@ -443,7 +524,7 @@ impl Store {
 
     /// Test support: makes a running job's lease look expired, as if its worker had died.
     pub async fn expire_lease(&self, id: &str) -> Result<(), StoreError> {
-        sqlx::query("UPDATE jobs SET lease_expires_at = 0 WHERE id = ? AND status = 'running'")
+        sqlx::query("UPDATE jobs SET lease_expires_at = 0 WHERE id = $1 AND status = 'running'")
             .bind(id)
             .execute(&self.write)
             .await?;

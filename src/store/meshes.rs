@@ -1,7 +1,8 @@
 //! Meshes: validated geometry in compact binary form with its summary.
 
 use serde::Serialize;
-use sqlx::{Row, Sqlite, Transaction};
+use sqlx::any::AnyRow;
+use sqlx::{Any, Row, Transaction};
 use utoipa::ToSchema;
 
 use sqlx::AssertSqlSafe;
@@ -79,14 +80,14 @@ const SELECT_MESH: &str = "SELECT id, dataset_id, name, source_format, vertex_co
      bbox_min, bbox_max, warnings, source, sha256, created_at FROM meshes";
 
 fn json_column<T: serde::de::DeserializeOwned>(
-    row: &sqlx::sqlite::SqliteRow,
+    row: &AnyRow,
     column: &str,
 ) -> Result<T, StoreError> {
     let text: String = row.try_get(column)?;
     serde_json::from_str(&text).map_err(|e| StoreError::Corrupt(format!("meshes.{column}: {e}")))
 }
 
-fn mesh_record(row: &sqlx::sqlite::SqliteRow) -> Result<MeshRecord, StoreError> {
+fn mesh_record(row: &AnyRow) -> Result<MeshRecord, StoreError> {
     let source: Option<String> = row.try_get("source")?;
     Ok(MeshRecord {
         id: row.try_get("id")?,
@@ -98,7 +99,7 @@ fn mesh_record(row: &sqlx::sqlite::SqliteRow) -> Result<MeshRecord, StoreError> 
         original_vertex_count: row.try_get("original_vertex_count")?,
         volume_ml: row.try_get("volume_ml")?,
         area_cm2: row.try_get("area_cm2")?,
-        watertight: row.try_get("watertight")?,
+        watertight: row.try_get::<i64, _>("watertight")? != 0,
         components: row.try_get("components")?,
         euler_characteristic: row.try_get("euler_characteristic")?,
         bbox_min: json_column(row, "bbox_min")?,
@@ -125,31 +126,64 @@ impl Store {
         dataset_id: &str,
         meshes: Vec<NewMesh>,
     ) -> Result<Vec<MeshRecord>, StoreError> {
+        let hashes: Vec<String> = meshes
+            .iter()
+            .map(|m| codec::sha256_hex(&m.ingested.mesh))
+            .collect();
+        match self.insert_mesh_batch(dataset_id, meshes).await {
+            // Another request stored one of these geometries meanwhile (PostgreSQL, where
+            // the duplicate check and the insert do not hold one lock), or deleted the
+            // dataset: answer as if it had come first.
+            Err(e) if e.is_unique_violation() => Err(self
+                .stored_duplicate(dataset_id, &hashes)
+                .await?
+                .unwrap_or(e)),
+            Err(e) if e.is_foreign_key_violation() => {
+                Err(StoreError::not_found("dataset", dataset_id))
+            }
+            other => other,
+        }
+    }
+
+    async fn insert_mesh_batch(
+        &self,
+        dataset_id: &str,
+        meshes: Vec<NewMesh>,
+    ) -> Result<Vec<MeshRecord>, StoreError> {
         let mut tx = self.begin_write().await?;
-        let exists: Option<i64> = sqlx::query_scalar("SELECT 1 FROM datasets WHERE id = ?")
+        let exists: Option<i64> = sqlx::query_scalar("SELECT 1 FROM datasets WHERE id = $1")
             .bind(dataset_id)
             .fetch_optional(&mut *tx)
             .await?;
         if exists.is_none() {
             return Err(StoreError::not_found("dataset", dataset_id));
         }
-        let mut seq: i64 =
-            sqlx::query_scalar("SELECT COALESCE(MAX(seq), 0) FROM meshes WHERE dataset_id = ?")
-                .bind(dataset_id)
-                .fetch_one(&mut *tx)
-                .await?;
+        let next_seq = self.dialect.next_seq("meshes");
         let mut records = Vec::with_capacity(meshes.len());
         for new in meshes {
-            seq += 1;
-            records.push(insert_one(&mut tx, dataset_id, new, seq).await?);
+            records.push(insert_one(&mut tx, dataset_id, new, &next_seq).await?);
         }
         tx.commit().await?;
         Ok(records)
     }
 
+    /// The first of `hashes` the dataset already holds, as [`StoreError::DuplicateMesh`].
+    async fn stored_duplicate(
+        &self,
+        dataset_id: &str,
+        hashes: &[String],
+    ) -> Result<Option<StoreError>, StoreError> {
+        for sha256 in hashes {
+            if let Some(found) = duplicate_of(&self.write, dataset_id, sha256).await? {
+                return Ok(Some(found));
+            }
+        }
+        Ok(None)
+    }
+
     /// One mesh's metadata.
     pub async fn mesh(&self, id: &str) -> Result<MeshRecord, StoreError> {
-        let row = sqlx::query(AssertSqlSafe(format!("{SELECT_MESH} WHERE id = ?")))
+        let row = sqlx::query(AssertSqlSafe(format!("{SELECT_MESH} WHERE id = $1")))
             .bind(id)
             .fetch_optional(&self.read)
             .await?
@@ -159,7 +193,7 @@ impl Store {
 
     /// One mesh's geometry.
     pub async fn mesh_geometry(&self, id: &str) -> Result<Mesh, StoreError> {
-        let blob: Vec<u8> = sqlx::query_scalar("SELECT geometry FROM meshes WHERE id = ?")
+        let blob: Vec<u8> = sqlx::query_scalar("SELECT geometry FROM meshes WHERE id = $1")
             .bind(id)
             .fetch_optional(&self.read)
             .await?
@@ -175,14 +209,14 @@ impl Store {
     ) -> Result<(Vec<MeshRecord>, i64), StoreError> {
         self.dataset(dataset_id).await?;
         let rows = sqlx::query(AssertSqlSafe(format!(
-            "{SELECT_MESH} WHERE dataset_id = ? ORDER BY seq LIMIT ? OFFSET ?"
+            "{SELECT_MESH} WHERE dataset_id = $1 ORDER BY seq LIMIT $2 OFFSET $3"
         )))
         .bind(dataset_id)
         .bind(page.limit)
         .bind(page.offset)
         .fetch_all(&self.read)
         .await?;
-        let total: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM meshes WHERE dataset_id = ?")
+        let total: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM meshes WHERE dataset_id = $1")
             .bind(dataset_id)
             .fetch_one(&self.read)
             .await?;
@@ -196,7 +230,7 @@ impl Store {
         dataset_id: &str,
     ) -> Result<Vec<(String, String)>, StoreError> {
         self.dataset(dataset_id).await?;
-        let rows = sqlx::query("SELECT id, sha256 FROM meshes WHERE dataset_id = ? ORDER BY seq")
+        let rows = sqlx::query("SELECT id, sha256 FROM meshes WHERE dataset_id = $1 ORDER BY seq")
             .bind(dataset_id)
             .fetch_all(&self.read)
             .await?;
@@ -207,7 +241,7 @@ impl Store {
 
     /// Deletes one mesh.
     pub async fn delete_mesh(&self, id: &str) -> Result<(), StoreError> {
-        let done = sqlx::query("DELETE FROM meshes WHERE id = ?")
+        let done = sqlx::query("DELETE FROM meshes WHERE id = $1")
             .bind(id)
             .execute(&self.write)
             .await?;
@@ -218,24 +252,37 @@ impl Store {
     }
 }
 
+/// The mesh of the dataset with geometry `sha256`, as [`StoreError::DuplicateMesh`].
+async fn duplicate_of<'e, E: sqlx::Executor<'e, Database = Any>>(
+    executor: E,
+    dataset_id: &str,
+    sha256: &str,
+) -> Result<Option<StoreError>, StoreError> {
+    let existing = sqlx::query("SELECT id, name FROM meshes WHERE dataset_id = $1 AND sha256 = $2")
+        .bind(dataset_id)
+        .bind(sha256)
+        .fetch_optional(executor)
+        .await?;
+    existing
+        .map(|row| {
+            Ok(StoreError::DuplicateMesh {
+                existing_id: row.try_get("id")?,
+                existing_name: row.try_get("name")?,
+            })
+        })
+        .transpose()
+}
+
 async fn insert_one(
-    tx: &mut Transaction<'_, Sqlite>,
+    tx: &mut Transaction<'_, Any>,
     dataset_id: &str,
     new: NewMesh,
-    seq: i64,
+    next_seq: &str,
 ) -> Result<MeshRecord, StoreError> {
     let geometry = codec::encode(&new.ingested.mesh);
     let sha256 = codec::sha256_hex(&new.ingested.mesh);
-    let existing = sqlx::query("SELECT id, name FROM meshes WHERE dataset_id = ? AND sha256 = ?")
-        .bind(dataset_id)
-        .bind(&sha256)
-        .fetch_optional(&mut **tx)
-        .await?;
-    if let Some(row) = existing {
-        return Err(StoreError::DuplicateMesh {
-            existing_id: row.try_get("id")?,
-            existing_name: row.try_get("name")?,
-        });
+    if let Some(duplicate) = duplicate_of(&mut **tx, dataset_id, &sha256).await? {
+        return Err(duplicate);
     }
     let s = &new.ingested.summary;
     let record = MeshRecord {
@@ -266,12 +313,13 @@ async fn insert_one(
         source: new.source,
         created_at: now(),
     };
-    sqlx::query(
+    sqlx::query(AssertSqlSafe(format!(
         "INSERT INTO meshes (id, dataset_id, name, source_format, vertex_count, face_count, \
          original_vertex_count, volume_ml, area_cm2, watertight, components, \
          euler_characteristic, bbox_min, bbox_max, warnings, source, sha256, geometry, \
-         created_at, seq) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-    )
+         created_at, seq) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, \
+         $14, $15, $16, $17, $18, $19, {next_seq})"
+    )))
     .bind(&record.id)
     .bind(&record.dataset_id)
     .bind(&record.name)
@@ -281,7 +329,7 @@ async fn insert_one(
     .bind(record.original_vertex_count)
     .bind(record.volume_ml)
     .bind(record.area_cm2)
-    .bind(record.watertight)
+    .bind(i64::from(record.watertight))
     .bind(record.components)
     .bind(record.euler_characteristic)
     .bind(to_json(&record.bbox_min))
@@ -291,7 +339,6 @@ async fn insert_one(
     .bind(&record.sha256)
     .bind(geometry)
     .bind(&record.created_at)
-    .bind(seq)
     .execute(&mut **tx)
     .await?;
     Ok(record)

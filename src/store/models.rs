@@ -2,7 +2,7 @@
 //! completion that stores them.
 
 use serde::{Deserialize, Serialize};
-use sqlx::sqlite::SqliteRow;
+use sqlx::any::AnyRow;
 use sqlx::{AssertSqlSafe, Row};
 use utoipa::ToSchema;
 
@@ -68,12 +68,12 @@ pub struct ModelRecord {
 const SELECT_MODEL: &str = "SELECT id, job_id, dataset_id, model_type, params, seed, \
      provenance, summary, created_at FROM models";
 
-fn json<T: serde::de::DeserializeOwned>(row: &SqliteRow, column: &str) -> Result<T, StoreError> {
+fn json<T: serde::de::DeserializeOwned>(row: &AnyRow, column: &str) -> Result<T, StoreError> {
     let text: String = row.try_get(column)?;
     serde_json::from_str(&text).map_err(|e| StoreError::Corrupt(format!("models.{column}: {e}")))
 }
 
-fn model(row: &SqliteRow) -> Result<ModelRecord, StoreError> {
+fn model(row: &AnyRow) -> Result<ModelRecord, StoreError> {
     Ok(ModelRecord {
         id: row.try_get("id")?,
         job_id: row.try_get("job_id")?,
@@ -102,28 +102,15 @@ impl Store {
     ) -> Result<Option<String>, StoreError> {
         let mut tx = self.begin_write().await?;
         let id = new_id();
-        let held = sqlx::query(
-            "UPDATE jobs SET status = 'succeeded', model_id = ?, finished_at = ?, \
-             lease_owner = NULL, lease_expires_at = NULL, \
-             progress = json_set(progress, '$.fraction', 1.0, '$.stage', 'done', \
-                                 '$.message', 'model stored') \
-             WHERE id = ? AND lease_owner = ? AND status = 'running'",
-        )
-        .bind(&id)
-        .bind(now())
-        .bind(job_id)
-        .bind(worker)
-        .execute(&mut *tx)
-        .await?
-        .rows_affected();
-        if held == 0 {
+        if !Self::succeed_job_in(&mut tx, job_id, worker, Some(&id), "model stored").await? {
             return Ok(None);
         }
-        sqlx::query(
+        sqlx::query(AssertSqlSafe(format!(
             "INSERT INTO models (id, job_id, dataset_id, model_type, params, seed, provenance, \
-             summary, reference, payload, created_at, seq) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, \
-             (SELECT COALESCE(MAX(seq), 0) + 1 FROM models))",
-        )
+             summary, reference, payload, created_at, seq) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, {})",
+            self.dialect.next_seq("models")
+        )))
         .bind(&id)
         .bind(job_id)
         .bind(&new.dataset_id)
@@ -143,7 +130,7 @@ impl Store {
 
     /// One model's metadata.
     pub async fn model(&self, id: &str) -> Result<ModelRecord, StoreError> {
-        let row = sqlx::query(AssertSqlSafe(format!("{SELECT_MODEL} WHERE id = ?")))
+        let row = sqlx::query(AssertSqlSafe(format!("{SELECT_MODEL} WHERE id = $1")))
             .bind(id)
             .fetch_optional(&self.read)
             .await?
@@ -156,7 +143,7 @@ impl Store {
         &self,
         id: &str,
     ) -> Result<(Vec<u8>, serde_json::Value), StoreError> {
-        let row = sqlx::query("SELECT payload, reference FROM models WHERE id = ?")
+        let row = sqlx::query("SELECT payload, reference FROM models WHERE id = $1")
             .bind(id)
             .fetch_optional(&self.read)
             .await?
@@ -166,7 +153,7 @@ impl Store {
 
     /// A model's reference population (JSON), without its payload.
     pub async fn model_reference(&self, id: &str) -> Result<serde_json::Value, StoreError> {
-        let row = sqlx::query("SELECT reference FROM models WHERE id = ?")
+        let row = sqlx::query("SELECT reference FROM models WHERE id = $1")
             .bind(id)
             .fetch_optional(&self.read)
             .await?
@@ -177,7 +164,7 @@ impl Store {
     /// A page of models, newest first.
     pub async fn models(&self, page: Page) -> Result<(Vec<ModelRecord>, i64), StoreError> {
         let rows = sqlx::query(AssertSqlSafe(format!(
-            "{SELECT_MODEL} ORDER BY seq DESC LIMIT ? OFFSET ?"
+            "{SELECT_MODEL} ORDER BY seq DESC LIMIT $1 OFFSET $2"
         )))
         .bind(page.limit)
         .bind(page.offset)
@@ -191,7 +178,7 @@ impl Store {
 
     /// Deletes a model and its cohorts.
     pub async fn delete_model(&self, id: &str) -> Result<(), StoreError> {
-        let done = sqlx::query("DELETE FROM models WHERE id = ?")
+        let done = sqlx::query("DELETE FROM models WHERE id = $1")
             .bind(id)
             .execute(&self.write)
             .await?;

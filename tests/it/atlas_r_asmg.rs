@@ -121,9 +121,8 @@ async fn tiny_phantoms_to_refined_model_atlases_and_clustered_cohort() {
 
     // A model stored in a format this release does not read (here: unversioned, as before
     // format 2) is a clear 409, not a 500; its record still reads.
-    let url = format!("sqlite://{}", s.database_path().display());
-    let pool = sqlx::SqlitePool::connect(&url).await.unwrap();
-    sqlx::query("UPDATE models SET payload = ? WHERE id = ?")
+    let pool = s.database_pool().await;
+    sqlx::query("UPDATE models SET payload = $1 WHERE id = $2")
         .bind(vec![0u8, 1, 2, 3])
         .bind(model_id)
         .execute(&pool)

@@ -160,12 +160,32 @@ fn a_file_that_is_not_a_model_is_a_clear_error() {
 }
 
 #[test]
-fn a_database_the_build_cannot_open_is_refused_with_what_to_give() {
-    let output = Command::new(env!("CARGO_BIN_EXE_cohortforge"))
-        .args(["worker", "--database", "postgres://user@db.example/cohorts"])
-        .output()
-        .unwrap();
-    assert!(!output.status.success());
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(stderr.contains("sqlite://FILE"), "{stderr}");
+fn a_database_that_cannot_be_opened_is_refused_with_what_to_give() {
+    let run = |database: &str| {
+        let output = Command::new(env!("CARGO_BIN_EXE_cohortforge"))
+            .args(["worker", "--bind", "127.0.0.1:0", "--database", database])
+            .output()
+            .unwrap();
+        assert!(!output.status.success(), "{database} was accepted");
+        String::from_utf8_lossy(&output.stderr).into_owned()
+    };
+    let stderr = run("mysql://user@db.example/cohorts");
+    assert!(
+        stderr.contains("sqlite://FILE") && stderr.contains("postgres://"),
+        "{stderr}"
+    );
+    // A PostgreSQL server that does not answer (a closed loopback port): the error names
+    // the database without its password.
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .unwrap()
+        .port();
+    let stderr = run(&format!(
+        "postgres://cf:hunter2secret@127.0.0.1:{port}/cohorts?connect_timeout=2"
+    ));
+    assert!(
+        stderr.contains("cannot open database postgres://cf:***@127.0.0.1"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("hunter2secret"), "{stderr}");
 }

@@ -16,5 +16,6 @@ mod nifti;
 mod openapi;
 mod pictures_exports;
 mod processes;
+mod queue;
 mod reports;
 mod support;

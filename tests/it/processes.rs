@@ -24,7 +24,7 @@ struct WorkerProcess {
 }
 
 impl WorkerProcess {
-    fn start(database: &std::path::Path) -> Self {
+    fn start(database: &str) -> Self {
         let port = std::net::TcpListener::bind("127.0.0.1:0")
             .and_then(|l| l.local_addr())
             .expect("a free port")
@@ -32,7 +32,7 @@ impl WorkerProcess {
         let child = Command::new(env!("CARGO_BIN_EXE_cohortforge"))
             .args(["worker", "--workers", "1"])
             .arg("--database")
-            .arg(format!("sqlite://{}", database.display()))
+            .arg(database)
             .args(["--bind", &format!("127.0.0.1:{port}")])
             .args(["--lease-seconds", &LEASE_SECONDS.to_string()])
             .env("COHORTFORGE_LOG", "warn")
@@ -110,7 +110,7 @@ async fn worker_processes_share_the_queue_and_take_over_a_killed_workers_job() {
     assert_eq!(jobs_with_status(&s, "queued").await.len(), 6);
 
     // The first worker process claims a job; the second starts, then the first is killed.
-    let mut first = WorkerProcess::start(&s.database_path());
+    let mut first = WorkerProcess::start(&s.database_url());
     let started = Instant::now();
     let running = loop {
         if let Some(job) = jobs_with_status(&s, "running").await.pop() {
@@ -122,7 +122,7 @@ async fn worker_processes_share_the_queue_and_take_over_a_killed_workers_job() {
         );
         tokio::time::sleep(Duration::from_millis(20)).await;
     };
-    let second = WorkerProcess::start(&s.database_path());
+    let second = WorkerProcess::start(&s.database_url());
     second.ready(&s.client).await;
     first.child.kill().expect("SIGKILL");
     first.child.wait().expect("the killed worker is reaped");

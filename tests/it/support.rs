@@ -1,9 +1,13 @@
-//! A real server on 127.0.0.1:0 with a temporary SQLite file, and a small client.
+//! A real server on 127.0.0.1:0 with a temporary database, and a small client.
+//!
+//! The database is a temporary SQLite file, or, when `COHORTFORGE_TEST_POSTGRES` names a
+//! PostgreSQL server (`postgres://USER@HOST:PORT`, no database), a new database on it for
+//! every server: the whole suite then runs against PostgreSQL.
 
 use std::path::PathBuf;
 
 use cohortforge::config::Config;
-use cohortforge::store::Store;
+use cohortforge::store::{Location, Store};
 use reqwest::{Response, StatusCode};
 use serde_json::Value;
 use tokio_util::sync::CancellationToken;
@@ -17,8 +21,35 @@ pub struct TestServer {
     /// The store the server uses, for checks behind the API.
     pub store: Store,
     shutdown: CancellationToken,
-    database: PathBuf,
+    database: Location,
     _dir: tempfile::TempDir,
+}
+
+/// The PostgreSQL server the suite runs against, if any (`COHORTFORGE_TEST_POSTGRES`).
+pub fn test_postgres() -> Option<String> {
+    std::env::var("COHORTFORGE_TEST_POSTGRES")
+        .ok()
+        .filter(|url| !url.is_empty())
+        .map(|url| url.trim_end_matches('/').to_owned())
+}
+
+/// A new empty database: a PostgreSQL database when the suite runs against PostgreSQL, a
+/// SQLite file in `dir` otherwise.
+pub async fn fresh_database(dir: &std::path::Path) -> Location {
+    let Some(server) = test_postgres() else {
+        return Location::Sqlite(dir.join("test.db"));
+    };
+    let name = format!("cf_test_{}", uuid::Uuid::new_v4().simple());
+    let admin = format!("{server}/postgres");
+    sqlx::any::install_default_drivers();
+    let mut conn = <sqlx::AnyConnection as sqlx::Connection>::connect(&admin)
+        .await
+        .unwrap_or_else(|e| panic!("COHORTFORGE_TEST_POSTGRES={server} does not answer: {e}"));
+    sqlx::query(sqlx::AssertSqlSafe(format!("CREATE DATABASE {name}")))
+        .execute(&mut conn)
+        .await
+        .expect("a test database is created");
+    Location::Postgres(format!("{server}/{name}"))
 }
 
 impl TestServer {
@@ -35,16 +66,22 @@ impl TestServer {
     /// A second server on `other`'s database file, as an API replica in another process
     /// would be: its own connections, the same data.
     pub async fn sharing(other: &TestServer) -> Self {
-        Self::start_on(Some(other.database_path()), |_| {}).await
+        Self::start_on(Some(other.database.clone()), |_| {}).await
     }
 
-    async fn start_on(database: Option<PathBuf>, adjust: impl FnOnce(&mut Config)) -> Self {
+    async fn start_on(database: Option<Location>, adjust: impl FnOnce(&mut Config)) -> Self {
         let dir = tempfile::tempdir().expect("temporary directory");
-        let mut config = Config::local(database.unwrap_or_else(|| dir.path().join("test.db")));
+        let database = match database {
+            Some(database) => database,
+            None => fresh_database(dir.path()).await,
+        };
+        let mut config = Config::local(database);
         adjust(&mut config);
         config.validate().expect("valid test configuration");
         let config_database = config.database.clone();
-        let store = Store::open(&config.database).await.expect("database opens");
+        let store = Store::connect(&config.database)
+            .await
+            .expect("database opens");
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
             .await
             .expect("bind");
@@ -66,9 +103,22 @@ impl TestServer {
         }
     }
 
-    /// The server's SQLite file (for tests that tamper with what is stored).
-    pub fn database_path(&self) -> PathBuf {
-        self.database.clone()
+    /// The server's database as a `--database` value (for other processes, and for tests
+    /// that tamper with what is stored).
+    pub fn database_url(&self) -> String {
+        match &self.database {
+            Location::Sqlite(path) => format!("sqlite://{}", path.display()),
+            Location::Postgres(url) => url.clone(),
+        }
+    }
+
+    /// A connection to the server's database through sqlx's `Any` driver (`$N`
+    /// placeholders work on both databases).
+    pub async fn database_pool(&self) -> sqlx::AnyPool {
+        sqlx::any::install_default_drivers();
+        sqlx::AnyPool::connect(&self.database_url())
+            .await
+            .expect("the test database opens")
     }
 
     /// Absolute URL of a path.
