@@ -6,7 +6,8 @@
         --phantoms phantoms/lv
 
 Starts `cohortforge serve --workers 0` and two `cohortforge worker` processes on a fresh
-SQLite file in a temporary directory, uploads the phantoms, then:
+SQLite file in a temporary directory (or, with --database postgres://..., on that
+PostgreSQL database, which must be empty), uploads the phantoms, then:
 
 1. times --requests sequential `GET /v1/jobs/{id}` with no job running (baseline);
 2. queues --fits RSMP fits (default parameters), and times the same requests while both
@@ -83,10 +84,11 @@ def main():
     ap.add_argument("--fits", type=int, default=4)
     ap.add_argument("--requests", type=int, default=2000)
     ap.add_argument("--lease-seconds", type=int, default=5)
+    ap.add_argument("--database", help="postgres:// URL of an empty database (default: a new SQLite file)")
     args = ap.parse_args()
 
     tmp = tempfile.mkdtemp(prefix="cohortforge-workers.")
-    database = f"sqlite://{tmp}/cf.db"
+    database = args.database or f"sqlite://{tmp}/cf.db"
     env = dict(os.environ, COHORTFORGE_LOG="warn", COHORTFORGE_DATABASE=database,
                COHORTFORGE_LEASE_SECONDS=str(args.lease_seconds))
     api_port = free_port()

@@ -8,6 +8,7 @@
 //! Other processes may share the file: write transactions take the write lock when they
 //! begin and wait for it up to the busy timeout. PostgreSQL: one pool for reads and writes.
 
+pub mod artefacts;
 pub mod cohorts;
 pub mod datasets;
 pub mod dialect;
@@ -20,7 +21,7 @@ pub mod models;
 pub mod queue_stats;
 
 use std::path::Path;
-use std::sync::Once;
+use std::sync::{Arc, Once};
 use std::time::Duration;
 
 use sqlx::AnyPool;
@@ -46,6 +47,8 @@ pub struct Store {
     dialect: Dialect,
     /// PostgreSQL URL, for the LISTEN connection.
     listen_url: Option<String>,
+    /// Where model payloads are kept.
+    artefacts: Arc<dyn artefacts::ArtefactStore>,
 }
 
 /// A page of a listing.
@@ -96,6 +99,7 @@ impl Store {
             write,
             dialect: Dialect::Sqlite,
             listen_url: None,
+            artefacts: Arc::new(artefacts::InDatabase),
         })
     }
 
@@ -111,6 +115,7 @@ impl Store {
             write: pool,
             dialect: Dialect::Postgres,
             listen_url: Some(url.to_owned()),
+            artefacts: Arc::new(artefacts::InDatabase),
         })
     }
 

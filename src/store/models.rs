@@ -6,6 +6,7 @@ use sqlx::any::AnyRow;
 use sqlx::{AssertSqlSafe, Row};
 use utoipa::ToSchema;
 
+use super::artefacts::Placed;
 use super::{Page, Store, StoreError, new_id, now};
 
 /// Where a model's training data came from.
@@ -98,20 +99,43 @@ impl Store {
         &self,
         job_id: &str,
         worker: &str,
-        new: NewModel,
+        mut new: NewModel,
     ) -> Result<Option<String>, StoreError> {
-        let mut tx = self.begin_write().await?;
         let id = new_id();
-        if !Self::succeed_job_in(&mut tx, job_id, worker, Some(&id), "model stored").await? {
-            return Ok(None);
+        let payload = std::mem::take(&mut new.payload);
+        let placed = self.artefacts.put(&format!("models/{id}"), payload).await?;
+        let stored = self.insert_model(job_id, worker, &id, &new, &placed).await;
+        if !matches!(stored, Ok(true)) {
+            self.discard(&placed).await;
+        }
+        Ok(stored?.then_some(id))
+    }
+
+    /// Marks the job succeeded and writes the model row, in one transaction; false when the
+    /// worker lost its lease.
+    async fn insert_model(
+        &self,
+        job_id: &str,
+        worker: &str,
+        id: &str,
+        new: &NewModel,
+        placed: &Placed,
+    ) -> Result<bool, StoreError> {
+        let (payload, payload_ref) = match placed {
+            Placed::InRow(bytes) => (bytes.clone(), None),
+            Placed::External(reference) => (Vec::new(), Some(reference.clone())),
+        };
+        let mut tx = self.begin_write().await?;
+        if !Self::succeed_job_in(&mut tx, job_id, worker, Some(id), "model stored").await? {
+            return Ok(false);
         }
         sqlx::query(AssertSqlSafe(format!(
             "INSERT INTO models (id, job_id, dataset_id, model_type, params, seed, provenance, \
-             summary, reference, payload, created_at, seq) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, {})",
+             summary, reference, payload, payload_ref, created_at, seq) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, {})",
             self.dialect.next_seq("models")
         )))
-        .bind(&id)
+        .bind(id)
         .bind(job_id)
         .bind(&new.dataset_id)
         .bind(&new.model_type)
@@ -120,12 +144,13 @@ impl Store {
         .bind(to_text(&new.provenance)?)
         .bind(new.summary.to_string())
         .bind(new.reference.to_string())
-        .bind(new.payload)
+        .bind(payload)
+        .bind(payload_ref)
         .bind(now())
         .execute(&mut *tx)
         .await?;
         tx.commit().await?;
-        Ok(Some(id))
+        Ok(true)
     }
 
     /// One model's metadata.
@@ -143,12 +168,15 @@ impl Store {
         &self,
         id: &str,
     ) -> Result<(Vec<u8>, serde_json::Value), StoreError> {
-        let row = sqlx::query("SELECT payload, reference FROM models WHERE id = $1")
+        let row = sqlx::query("SELECT payload, payload_ref, reference FROM models WHERE id = $1")
             .bind(id)
             .fetch_optional(&self.read)
             .await?
             .ok_or_else(|| StoreError::not_found("model", id))?;
-        Ok((row.try_get("payload")?, json(&row, "reference")?))
+        let payload = self
+            .payload_of(row.try_get("payload")?, row.try_get("payload_ref")?)
+            .await?;
+        Ok((payload, json(&row, "reference")?))
     }
 
     /// A model's reference population (JSON), without its payload.
@@ -178,13 +206,19 @@ impl Store {
 
     /// Deletes a model and its cohorts.
     pub async fn delete_model(&self, id: &str) -> Result<(), StoreError> {
-        let done = sqlx::query("DELETE FROM models WHERE id = $1")
-            .bind(id)
-            .execute(&self.write)
-            .await?;
-        if done.rows_affected() == 0 {
-            return Err(StoreError::not_found("model", id));
+        let deleted: Option<Option<String>> =
+            sqlx::query_scalar("DELETE FROM models WHERE id = $1 RETURNING payload_ref")
+                .bind(id)
+                .fetch_optional(&self.write)
+                .await?;
+        match deleted {
+            None => Err(StoreError::not_found("model", id)),
+            Some(reference) => {
+                if let Some(reference) = reference {
+                    self.discard(&Placed::External(reference)).await;
+                }
+                Ok(())
+            }
         }
-        Ok(())
     }
 }
