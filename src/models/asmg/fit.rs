@@ -338,6 +338,9 @@ pub(crate) fn train_generator(
         Some(networks),
     );
     model.latent_prior = Some(latent_prior);
+    if params.calibrate_spread {
+        model.calibrate_spread(&shapes, data.weights, seed)?;
+    }
     Ok((model, curve))
 }
 

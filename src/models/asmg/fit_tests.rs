@@ -143,3 +143,55 @@ fn cancellation_stops_training_and_bad_input_is_refused() {
     let err = fit(&meshes, &[], &given, None, 1, &mut Silent).unwrap_err();
     assert!(matches!(err, ModelError::InvalidParams { ref field, .. } if field == "atlas"));
 }
+
+#[test]
+fn spread_calibration_is_fitted_kept_and_applied_to_draws() {
+    let meshes = phantoms(8);
+    let params = AsmgParams {
+        calibrate_spread: true,
+        ..quick()
+    };
+    let outcome = fit(&meshes, &[], &params, None, 4, &mut Silent).unwrap();
+    let bytes = outcome.model.to_bytes().unwrap();
+    let back = StoredModel::from_bytes(&bytes).unwrap();
+    let model: &AsmgModel = back.downcast().expect("an asmg model");
+    let calibration = model.spread_calibration.as_ref().expect("a calibration");
+    assert!(calibration.mode_count() >= 1 && calibration.mode_count() < 8);
+    assert_eq!(calibration.mean.len(), 3 * model.atlas.vertex_count());
+    // Along the first mode, calibrated draws spread `gain` times the uncalibrated ones.
+    let codes: Vec<Vec<f32>> = (0..200)
+        .map(|k| model.draw_code(&mut draw_rng(9, k), Sampling::Gaussian))
+        .collect();
+    let raw = model.decode_uncalibrated(&codes).unwrap();
+    let calibrated = model.decode(&codes).unwrap();
+    let along = |shape: &[f32]| -> f64 {
+        calibration.modes[0]
+            .iter()
+            .zip(shape.iter().zip(&calibration.mean))
+            .map(|(u, (x, m))| f64::from(*u) * f64::from(x - m))
+            .sum()
+    };
+    let sd = |values: Vec<f64>| {
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt()
+    };
+    let raw_sd = sd(raw.iter().map(|s| along(s)).collect());
+    let calibrated_sd = sd(calibrated
+        .iter()
+        .map(|m| {
+            along(
+                &m.vertices
+                    .iter()
+                    .flat_map(|p| p.map(|c| c as f32))
+                    .collect::<Vec<_>>(),
+            )
+        })
+        .collect());
+    let ratio = calibrated_sd / raw_sd;
+    assert!(
+        (ratio - f64::from(calibration.gain[0])).abs() < 0.02 * ratio,
+        "sd ratio {ratio} vs gain {}",
+        calibration.gain[0]
+    );
+}

@@ -17,6 +17,7 @@
 
 pub mod atlas;
 pub mod attention;
+pub mod calibration;
 pub mod embeddings;
 pub mod fit;
 pub mod icosphere;

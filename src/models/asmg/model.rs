@@ -14,6 +14,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 
+use super::calibration::SpreadCalibration;
 use super::embeddings::Embeddings;
 use super::learn::{ShapeInput, normalise_shapes};
 use super::params::AsmgParams;
@@ -117,6 +118,10 @@ pub struct AsmgModel {
     /// (absent in models stored before it existed: N(0, I)).
     #[serde(default)]
     pub latent_prior: Option<LatentPrior>,
+    /// Corrections that give drawn shapes the training shapes' spread (absent in models
+    /// stored before it existed, or fitted with `calibrate_spread` off: draws as decoded).
+    #[serde(default)]
+    pub spread_calibration: Option<SpreadCalibration>,
     /// The networks once built (boxed: they are large and most copies of a model never
     /// build them).
     #[serde(skip)]
@@ -209,6 +214,7 @@ impl AsmgModel {
             graph_weights: weights.0,
             generator_weights: weights.1,
             latent_prior: None,
+            spread_calibration: None,
             networks: OnceLock::new(),
         };
         if let Some(n) = networks {
@@ -306,6 +312,15 @@ impl AsmgModel {
         Ok(out.iter().map(|s| self.to_mesh(s).vertices).collect())
     }
 
+    /// A latent code `[L]` drawn as cohorts draw them: clipped standard coordinates mapped
+    /// through the latent prior.
+    pub(crate) fn draw_code(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Vec<f32> {
+        let standard: Vec<f32> = (0..self.sizes.vae_latent)
+            .map(|_| latent_coordinate(rng, sampling))
+            .collect();
+        self.code_of(standard)
+    }
+
     /// The latent code of a standard-normal vector `ε` (`[L]`): through the latent
     /// Gaussian fitted to the training codes, or `ε` itself for models without one.
     fn code_of(&self, standard: Vec<f32>) -> Vec<f32> {
@@ -315,11 +330,23 @@ impl AsmgModel {
         }
     }
 
-    /// Decodes latent codes `[L]` to meshes.
+    /// Decodes latent codes `[L]` to meshes, with the spread calibration when the model
+    /// has one.
     pub fn decode(&self, latents: &[Vec<f32>]) -> Result<Vec<Mesh>, ModelError> {
-        let nets = self.networks()?;
-        let shapes = nets.generator.decode(latents).map_err(nn_error)?;
+        let mut shapes = self.decode_uncalibrated(latents)?;
+        if let Some(calibration) = &self.spread_calibration {
+            shapes.iter_mut().for_each(|s| calibration.apply(s));
+        }
         Ok(shapes.iter().map(|s| self.to_mesh(s)).collect())
+    }
+
+    /// The generator's shapes (flattened, mm) of latent codes `[L]`, as decoded.
+    pub(crate) fn decode_uncalibrated(
+        &self,
+        latents: &[Vec<f32>],
+    ) -> Result<Vec<Vec<f32>>, ModelError> {
+        let nets = self.networks()?;
+        nets.generator.decode(latents).map_err(nn_error)
     }
 }
 
@@ -348,11 +375,8 @@ impl ShapeModel for AsmgModel {
     }
 
     fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Draw, ModelError> {
-        let standard: Vec<f32> = (0..self.sizes.vae_latent)
-            .map(|_| latent_coordinate(rng, sampling))
-            .collect();
         let mesh = self
-            .decode(&[self.code_of(standard)])?
+            .decode(&[self.draw_code(rng, sampling)])?
             .pop()
             .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))?;
         Ok(Draw { mesh, cluster: 0 })

@@ -149,6 +149,11 @@ pub struct AsmgParams {
     pub multistart: bool,
     /// Most CPD iterations of the pre-alignment.
     pub cpd_max_iterations: usize,
+    /// Give drawn shapes the training shapes' mean and spread along the principal modes of
+    /// the training population's normalised shapes (a generator's draws vary less than its
+    /// training shapes). Off by default: it widens the volume and area spread but also the
+    /// middle extent, lowering the joint acceptance; see the README.
+    pub calibrate_spread: bool,
 }
 
 impl Default for AsmgParams {
@@ -175,6 +180,7 @@ impl Default for AsmgParams {
             tolerance: DEFAULT_TOLERANCE_MM,
             multistart: true,
             cpd_max_iterations: DEFAULT_CPD_MAX_ITERATIONS,
+            calibrate_spread: false,
         }
     }
 }

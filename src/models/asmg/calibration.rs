@@ -1,0 +1,330 @@
+//! Spread calibration of a generator: a VAE's decoded samples vary less than the shapes it
+//! was trained on (the decoder averages what the latent code does not pin down), so its
+//! cohorts would be too narrow. After training, a seeded batch of drawn shapes is compared
+//! with the training shapes along the training population's principal modes; every drawn
+//! shape is then moved so that, along each of those modes, the draws have the training
+//! shapes' mean and standard deviation. What lies outside the modes is left as drawn.
+//!
+//! Shapes are flattened atlas-domain vertex positions `[3·N_μ]` in mm.
+
+use nalgebra::{DMatrix, SymmetricEigen};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use super::model::AsmgModel;
+use crate::geometry::pca::Sampling;
+use crate::models::ModelError;
+
+/// Uncalibrated draws the corrections are estimated from.
+pub const CALIBRATION_DRAWS: usize = 1000;
+/// Added to the fit seed for the calibration draws.
+const CALIBRATION_SEED_OFFSET: u64 = 0x5bea_dca1;
+
+/// Share of the training shapes' variance the calibrated modes explain.
+pub const CALIBRATED_VARIANCE: f64 = 0.95;
+/// Bounds of a mode's gain: a mode the generator barely varies is widened at most this
+/// much, one it over-varies narrowed at most to its inverse.
+pub const MAX_GAIN: f64 = 4.0;
+
+/// Per-mode corrections of drawn shapes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SpreadCalibration {
+    /// The training shapes' (weighted) mean, `[3·N_μ]` mm.
+    pub mean: Vec<f32>,
+    /// Unit principal directions of the training shapes, `[K][3·N_μ]`.
+    pub modes: Vec<Vec<f32>>,
+    /// Mean coordinate of the uncalibrated draws along each mode, `[K]` mm.
+    pub drawn_mean: Vec<f32>,
+    /// Training sd over drawn sd along each mode, `[K]`.
+    pub gain: Vec<f32>,
+    /// Factor (≤ 1) on what a drawn shape has off the modes, so that the draws vary there
+    /// no more than the training shapes do (1 in models stored before it existed).
+    #[serde(default = "unit_gain")]
+    pub residual_gain: f32,
+}
+
+fn unit_gain() -> f32 {
+    1.0
+}
+
+impl SpreadCalibration {
+    /// Fits the corrections from the training shapes (each with a weight, `None`: equal) and
+    /// uncalibrated draws of the generator. `None` when there are too few shapes or draws
+    /// to estimate a spread.
+    pub fn fit(training: &[Vec<f32>], weights: Option<&[f32]>, drawn: &[Vec<f32>]) -> Option<Self> {
+        let dim = training.first()?.len();
+        if training.len() < 3 || drawn.len() < 3 || drawn.iter().any(|d| d.len() != dim) {
+            return None;
+        }
+        let w: Vec<f64> = match weights {
+            Some(w) if w.len() == training.len() => {
+                w.iter().map(|&v| f64::from(v.max(0.0))).collect()
+            }
+            _ => vec![1.0; training.len()],
+        };
+        let total: f64 = w.iter().sum();
+        if total <= 0.0 {
+            return None;
+        }
+        let mean: Vec<f64> = (0..dim)
+            .map(|j| {
+                training
+                    .iter()
+                    .zip(&w)
+                    .map(|(x, w)| w * f64::from(x[j]))
+                    .sum::<f64>()
+                    / total
+            })
+            .collect();
+        let (modes, variances, residual_variance) = principal_modes(training, &w, total, &mean)?;
+        let mut calibration = Self {
+            mean: mean.iter().map(|&v| v as f32).collect(),
+            modes: modes
+                .iter()
+                .map(|m| m.iter().map(|&v| v as f32).collect())
+                .collect(),
+            drawn_mean: Vec::with_capacity(modes.len()),
+            gain: Vec::with_capacity(modes.len()),
+            residual_gain: 1.0,
+        };
+        for (k, variance) in variances.iter().enumerate() {
+            let coords: Vec<f64> = drawn.iter().map(|d| calibration.coordinate(d, k)).collect();
+            let n = coords.len() as f64;
+            let centre = coords.iter().sum::<f64>() / n;
+            let sd = (coords.iter().map(|c| (c - centre).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+            let gain = if sd > 0.0 {
+                variance.sqrt() / sd
+            } else {
+                MAX_GAIN
+            };
+            calibration.drawn_mean.push(centre as f32);
+            calibration
+                .gain
+                .push(gain.clamp(1.0 / MAX_GAIN, MAX_GAIN) as f32);
+        }
+        let drawn_residual = drawn
+            .iter()
+            .map(|d| calibration.residual(d).iter().map(|r| r * r).sum::<f64>())
+            .sum::<f64>()
+            / (drawn.len() as f64 - 1.0);
+        if drawn_residual > residual_variance {
+            calibration.residual_gain = (residual_variance / drawn_residual).sqrt() as f32;
+        }
+        Some(calibration)
+    }
+
+    /// Coordinate of `shape` along mode `k`, relative to the training mean (mm).
+    fn coordinate(&self, shape: &[f32], k: usize) -> f64 {
+        self.modes[k]
+            .iter()
+            .zip(shape.iter().zip(&self.mean))
+            .map(|(u, (x, m))| f64::from(*u) * f64::from(x - m))
+            .sum()
+    }
+
+    /// What `shape` has off the modes, relative to the training mean, `[3·N_μ]` mm.
+    fn residual(&self, shape: &[f32]) -> Vec<f64> {
+        let mut r: Vec<f64> = shape
+            .iter()
+            .zip(&self.mean)
+            .map(|(x, m)| f64::from(x - m))
+            .collect();
+        for (k, mode) in self.modes.iter().enumerate() {
+            let c = self.coordinate(shape, k);
+            r.iter_mut()
+                .zip(mode)
+                .for_each(|(r, u)| *r -= c * f64::from(*u));
+        }
+        r
+    }
+
+    /// Moves a drawn shape so that its coordinate `c` along each mode becomes
+    /// `(c − drawn mean) · gain` and what it has off the modes is scaled by the residual
+    /// gain; a shape of another width is left alone.
+    pub fn apply(&self, shape: &mut [f32]) {
+        if shape.len() != self.mean.len() {
+            return;
+        }
+        let residual = self.residual(shape);
+        let coords: Vec<f64> = (0..self.modes.len())
+            .map(|k| {
+                (self.coordinate(shape, k) - f64::from(self.drawn_mean[k]))
+                    * f64::from(self.gain[k])
+            })
+            .collect();
+        let residual_gain = f64::from(self.residual_gain);
+        for (j, x) in shape.iter_mut().enumerate() {
+            let on_modes: f64 = coords
+                .iter()
+                .zip(&self.modes)
+                .map(|(c, u)| c * f64::from(u[j]))
+                .sum();
+            *x = (f64::from(self.mean[j]) + on_modes + residual_gain * residual[j]) as f32;
+        }
+    }
+
+    /// Number of calibrated modes.
+    pub fn mode_count(&self) -> usize {
+        self.modes.len()
+    }
+}
+
+impl AsmgModel {
+    /// Fits and keeps the spread calibration from the training shapes (flattened, mm; each
+    /// with a weight, `None`: equal) and [`CALIBRATION_DRAWS`] draws seeded from `seed`.
+    pub fn calibrate_spread(
+        &mut self,
+        training: &[Vec<f32>],
+        weights: Option<&[f32]>,
+        seed: u64,
+    ) -> Result<(), ModelError> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_add(CALIBRATION_SEED_OFFSET));
+        let codes: Vec<Vec<f32>> = (0..CALIBRATION_DRAWS)
+            .map(|_| self.draw_code(&mut rng, Sampling::Gaussian))
+            .collect();
+        let drawn = self.decode_uncalibrated(&codes)?;
+        self.spread_calibration = SpreadCalibration::fit(training, weights, &drawn);
+        Ok(())
+    }
+}
+
+/// Unit principal directions `[K][dim]` of the weighted training shapes, their variances,
+/// up to [`CALIBRATED_VARIANCE`] of the total, and the variance left off them (mm²), from
+/// the `n × n` Gram matrix.
+fn principal_modes(
+    training: &[Vec<f32>],
+    w: &[f64],
+    total: f64,
+    mean: &[f64],
+) -> Option<(Vec<Vec<f64>>, Vec<f64>, f64)> {
+    let n = training.len();
+    let centred: Vec<Vec<f64>> = training
+        .iter()
+        .zip(w)
+        .map(|(x, w)| {
+            let s = (w / total).sqrt();
+            x.iter()
+                .zip(mean)
+                .map(|(v, m)| s * (f64::from(*v) - m))
+                .collect()
+        })
+        .collect();
+    let gram = DMatrix::from_fn(n, n, |i, j| {
+        centred[i]
+            .iter()
+            .zip(&centred[j])
+            .map(|(a, b)| a * b)
+            .sum::<f64>()
+    });
+    let eigen = SymmetricEigen::new(gram);
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
+    let sum: f64 = eigen.eigenvalues.iter().filter(|v| **v > 0.0).sum();
+    if sum <= 0.0 {
+        return None;
+    }
+    // Weighted variances are biased by the effective sample size; n/(n−1) for equal weights.
+    let unbias = n as f64 / (n as f64 - 1.0);
+    let (mut modes, mut variances, mut explained) = (Vec::new(), Vec::new(), 0.0);
+    for &k in &order {
+        let lambda = eigen.eigenvalues[k];
+        if lambda <= sum * 1e-9 || explained >= CALIBRATED_VARIANCE * sum {
+            break;
+        }
+        let v = eigen.eigenvectors.column(k);
+        let dim = centred[0].len();
+        let scale = lambda.sqrt();
+        let mode: Vec<f64> = (0..dim)
+            .map(|j| (0..n).map(|i| v[i] * centred[i][j]).sum::<f64>() / scale)
+            .collect();
+        modes.push(mode);
+        variances.push(lambda * unbias);
+        explained += lambda;
+    }
+    Some((modes, variances, (sum - explained).max(0.0) * unbias))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sd(values: &[f64]) -> (f64, f64) {
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        (mean, var.sqrt())
+    }
+
+    /// Points on a line through (10, 0) along x: training sd 2 mm, draws sd 1 mm around 11.
+    fn line(values: &[f64], offset: f64) -> Vec<Vec<f32>> {
+        values
+            .iter()
+            .map(|v| vec![(10.0 + offset + v) as f32, 0.0])
+            .collect()
+    }
+
+    #[test]
+    fn narrow_draws_get_the_training_mean_and_spread_along_its_mode() {
+        let training = line(&[-2.0, 2.0, -2.0, 2.0, 0.0, 0.0], 0.0);
+        let (_, train_sd) = sd(&training.iter().map(|x| f64::from(x[0])).collect::<Vec<_>>());
+        let drawn = line(&[-1.0, 1.0, -1.0, 1.0, 0.0, 0.0], 1.0);
+        let c = SpreadCalibration::fit(&training, None, &drawn).unwrap();
+        assert_eq!(c.mode_count(), 1);
+        let calibrated: Vec<f64> = drawn
+            .iter()
+            .map(|d| {
+                let mut d = d.clone();
+                c.apply(&mut d);
+                assert!(d[1].abs() < 1e-5, "nothing moves off the mode");
+                f64::from(d[0])
+            })
+            .collect();
+        let (mean, spread) = sd(&calibrated);
+        assert!((mean - 10.0).abs() < 1e-4, "mean {mean}");
+        assert!(
+            (spread - train_sd).abs() < 1e-4,
+            "sd {spread} vs {train_sd}"
+        );
+    }
+
+    #[test]
+    fn what_lies_off_the_modes_is_left_as_drawn() {
+        let training = line(&[-2.0, 2.0, -1.0, 1.0], 0.0);
+        let drawn = line(&[-1.0, 1.0, 0.0], 0.0);
+        let c = SpreadCalibration::fit(&training, None, &drawn).unwrap();
+        let mut off = vec![10.0f32, 3.0];
+        c.apply(&mut off);
+        assert!((off[1] - 3.0).abs() < 1e-6);
+        // Draws that vary off the modes more than the training shapes are pulled in: the
+        // training shapes vary only along x.
+        let noisy: Vec<Vec<f32>> = [(-1.0, 1.0), (1.0, -1.0), (0.0, 0.0), (0.5, 2.0)]
+            .iter()
+            .map(|(x, y)| vec![10.0 + x, *y])
+            .collect();
+        let c = SpreadCalibration::fit(&training, None, &noisy).unwrap();
+        assert!(c.residual_gain < 1e-3, "{}", c.residual_gain);
+        let mut shape = noisy[3].clone();
+        c.apply(&mut shape);
+        assert!(shape[1].abs() < 1e-2, "{shape:?}");
+        // A shape of another width is not touched.
+        let mut other = vec![1.0f32; 3];
+        c.apply(&mut other);
+        assert_eq!(other, vec![1.0; 3]);
+    }
+
+    #[test]
+    fn weights_choose_whose_spread_is_matched_and_gains_are_bounded() {
+        // Heavy weights on the two outer shapes: a wider weighted spread than equal weights.
+        let training = line(&[-3.0, 3.0, -0.5, 0.5], 0.0);
+        let drawn = line(&[-1.0, 1.0, 0.0], 0.0);
+        let equal = SpreadCalibration::fit(&training, None, &drawn).unwrap();
+        let outer =
+            SpreadCalibration::fit(&training, Some(&[1.0, 1.0, 0.01, 0.01]), &drawn).unwrap();
+        assert!(outer.gain[0] > equal.gain[0]);
+        let still = line(&[0.0, 0.0, 0.0], 0.0);
+        let flat = SpreadCalibration::fit(&training, None, &still).unwrap();
+        assert_eq!(flat.gain[0], MAX_GAIN as f32);
+        assert!(SpreadCalibration::fit(&training[..2], None, &drawn).is_none());
+    }
+}
