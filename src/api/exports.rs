@@ -13,7 +13,6 @@ use super::extract::{Path, Query};
 use super::meshes::file_response;
 use super::models::{FormatQuery, load_model};
 use super::reports::stored;
-use crate::eval::Biomarkers;
 use crate::models::{ModelSummary, ReferencePopulation};
 use crate::report::exports::{MeshRow, members_csv, modes_csv, training_csv};
 
@@ -121,7 +120,9 @@ async fn training_table(
     let mut holdout_biomarkers = Vec::with_capacity(provenance.holdout_mesh_ids.len());
     for mesh_id in &provenance.holdout_mesh_ids {
         let mesh = state.store.mesh_geometry(mesh_id).await?;
-        let b = Biomarkers::from_mesh(&mesh).map_err(|e| ApiError::internal(e.to_string()))?;
+        let b = reference
+            .measure(&mesh)
+            .map_err(|e| ApiError::internal(e.to_string()))?;
         holdout_biomarkers.push(b.values());
     }
     let clusters = summary.clusters.as_ref();

@@ -1,7 +1,7 @@
 //! Per-mesh biomarkers (SPEC §3): enclosed volume (ml), surface area (cm²), sphericity and
 //! principal extents (mm).
 
-use nalgebra::{Matrix3, SymmetricEigen};
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::EvalError;
@@ -41,8 +41,15 @@ impl Biomarkers {
     /// Units of the biomarkers, in the same order ("" for unitless).
     pub const UNITS: [&'static str; 6] = ["ml", "cm²", "", "mm", "mm", "mm"];
 
-    /// Biomarkers of a mesh; fails if a face refers to a missing vertex.
+    /// Biomarkers of a mesh, extents along the surface's principal axes; fails if a face
+    /// refers to a missing vertex.
     pub fn from_mesh(mesh: &Mesh) -> Result<Self, EvalError> {
+        Self::measure(mesh, ExtentAxes::Surface)
+    }
+
+    /// Biomarkers of a mesh with the extents measured along `axes`; fails if a face refers
+    /// to a missing vertex.
+    pub fn measure(mesh: &Mesh, axes: ExtentAxes) -> Result<Self, EvalError> {
         let count = mesh.vertices.len();
         for (face, f) in mesh.faces.iter().enumerate() {
             if let Some(&vertex) = f.iter().find(|v| **v as usize >= count) {
@@ -55,7 +62,7 @@ impl Biomarkers {
         }
         let volume_mm3 = signed_volume_mm3(mesh);
         let area = area_mm2(mesh);
-        let [major, middle, minor] = principal_extents(&mesh.vertices);
+        let [major, middle, minor] = principal_extents(mesh, axes);
         Ok(Self {
             volume_ml: volume_mm3 / MM3_PER_ML,
             area_cm2: area / MM2_PER_CM2,
@@ -98,20 +105,33 @@ pub fn sphericity(volume_mm3: f64, area_mm2: f64) -> f64 {
     std::f64::consts::PI.cbrt() * (6.0 * volume_mm3.abs()).powf(2.0 / 3.0) / area_mm2
 }
 
-/// Ranges (mm) of the points along the eigenvectors of their covariance, sorted descending
-/// (largest extent first). Zeros for an empty set.
-pub fn principal_extents(vertices: &[[f64; 3]]) -> [f64; 3] {
+/// The principal axes along which extents are measured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ExtentAxes {
+    /// Eigenvectors of the covariance of the surface (each triangle weighted by its area):
+    /// the same surface meshed more finely in one region has the same axes.
+    #[default]
+    Surface,
+    /// Eigenvectors of the covariance of the vertices, each counted once: regions meshed
+    /// more finely pull the axes. Kept for reference populations stored before `Surface`.
+    Vertices,
+}
+
+/// Ranges (mm) of the vertices along the principal axes, sorted descending (largest extent
+/// first). With [`ExtentAxes::Surface`], a mesh without area (no faces) falls back to the
+/// covariance of its vertices. Zeros for a mesh without vertices.
+pub fn principal_extents(mesh: &Mesh, axes: ExtentAxes) -> [f64; 3] {
+    let vertices = &mesh.vertices;
     if vertices.is_empty() {
         return [0.0; 3];
     }
-    let n = vertices.len() as f64;
-    let c: [f64; 3] = std::array::from_fn(|k| vertices.iter().map(|v| v[k]).sum::<f64>() / n);
-    let mut cov = Matrix3::<f64>::zeros();
-    for v in vertices {
-        let d = nalgebra::Vector3::new(v[0] - c[0], v[1] - c[1], v[2] - c[2]);
-        cov += d * d.transpose();
-    }
-    let axes = SymmetricEigen::new(cov / n).eigenvectors;
+    let covariance = match axes {
+        ExtentAxes::Surface => surface_covariance(mesh),
+        ExtentAxes::Vertices => None,
+    };
+    let axes =
+        SymmetricEigen::new(covariance.unwrap_or_else(|| vertex_covariance(vertices))).eigenvectors;
     let mut extents: [f64; 3] = std::array::from_fn(|k| {
         let axis = axes.column(k);
         let (lo, hi) = vertices
@@ -124,6 +144,46 @@ pub fn principal_extents(vertices: &[[f64; 3]]) -> [f64; 3] {
     });
     extents.sort_by(|a, b| b.total_cmp(a));
     extents
+}
+
+/// Covariance (mm²) of the vertices, each counted once.
+fn vertex_covariance(vertices: &[[f64; 3]]) -> Matrix3<f64> {
+    let n = vertices.len() as f64;
+    let c = Vector3::from(std::array::from_fn(|k| {
+        vertices.iter().map(|v| v[k]).sum::<f64>() / n
+    }));
+    let mut cov = Matrix3::<f64>::zeros();
+    for v in vertices {
+        let d = Vector3::from(*v) - c;
+        cov += d * d.transpose();
+    }
+    cov / n
+}
+
+/// Covariance (mm²) of a point drawn uniformly from the surface, or `None` when the faces
+/// have no area. A triangle with corners `a, b, c` (sum `s`) contributes its area times
+/// `E[x xᵀ] = (a aᵀ + b bᵀ + c cᵀ + s sᵀ) / 12` about the vertex mean.
+fn surface_covariance(mesh: &Mesh) -> Option<Matrix3<f64>> {
+    let n = mesh.vertices.len() as f64;
+    let origin = Vector3::from(std::array::from_fn(|k| {
+        mesh.vertices.iter().map(|v| v[k]).sum::<f64>() / n
+    }));
+    let (mut area, mut first, mut second) = (0.0, Vector3::zeros(), Matrix3::zeros());
+    for f in &mesh.faces {
+        let [a, b, c] = f.map(|i| Vector3::from(mesh.vertices[i as usize]) - origin);
+        let weight = 0.5 * (b - a).cross(&(c - a)).norm();
+        let s = a + b + c;
+        area += weight;
+        first += weight * s / 3.0;
+        second += weight
+            * (a * a.transpose() + b * b.transpose() + c * c.transpose() + s * s.transpose())
+            / 12.0;
+    }
+    if area <= 0.0 {
+        return None;
+    }
+    let mean = first / area;
+    Some(second / area - mean * mean.transpose())
 }
 
 #[cfg(test)]
@@ -207,6 +267,41 @@ mod tests {
         assert!((b.extent_major_mm - 40.0).abs() < 1e-9);
         assert!((b.extent_middle_mm - 20.0).abs() < 1e-9);
         assert!((b.extent_minor_mm - 10.0).abs() < 1e-9);
+    }
+
+    /// Variance along x (mm²) of a point uniform on the surface of an `a × b × c` box: the
+    /// two faces across x sit at ±a/2, the four along x spread uniformly (a²/12).
+    fn box_surface_variance(a: f64, b: f64, c: f64) -> f64 {
+        (2.0 * b * c * a * a / 4.0 + 2.0 * (a * b + a * c) * a * a / 12.0)
+            / (2.0 * (a * b + b * c + c * a))
+    }
+
+    #[test]
+    fn surface_covariance_of_a_box_and_of_the_same_box_meshed_unevenly() {
+        let mut mesh = cuboid(20.0, 40.0, 10.0);
+        let expected = [
+            box_surface_variance(20.0, 40.0, 10.0),
+            box_surface_variance(40.0, 20.0, 10.0),
+            box_surface_variance(10.0, 40.0, 20.0),
+        ];
+        let cov = surface_covariance(&mesh).unwrap();
+        for k in 0..3 {
+            assert!((cov[(k, k)] - expected[k]).abs() < 1e-9, "{k}: {cov}");
+        }
+        // Split the z = c face into four triangles around a new centre vertex: the surface
+        // and its covariance stay; the vertex covariance moves towards that face.
+        mesh.vertices.push([10.0, 20.0, 10.0]);
+        mesh.faces
+            .splice(2..4, [[4, 5, 8], [5, 7, 8], [7, 6, 8], [6, 4, 8]]);
+        let split = surface_covariance(&mesh).unwrap();
+        assert!((split - cov).abs().max() < 1e-9, "{split} vs {cov}");
+        assert!((vertex_covariance(&mesh.vertices) - cov).abs().max() > 1.0);
+        let by_vertices = Biomarkers::measure(&mesh, ExtentAxes::Vertices).unwrap();
+        assert!((by_vertices.extent_major_mm - 40.0).abs() < 1e-9);
+        let extents = principal_extents(&mesh, ExtentAxes::Surface);
+        for (got, want) in extents.iter().zip([40.0, 20.0, 10.0]) {
+            assert!((got - want).abs() < 1e-9, "{extents:?}");
+        }
     }
 
     #[test]

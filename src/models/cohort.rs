@@ -214,6 +214,7 @@ pub fn draw_shape<M: ShapeModel + ?Sized>(
 
 fn evaluate_draw<M: ShapeModel + ?Sized>(
     model: &M,
+    reference: &ReferencePopulation,
     intervals: &[Intervals],
     training: &TrainingIndex<'_>,
     spec: &CohortSpec,
@@ -222,7 +223,7 @@ fn evaluate_draw<M: ShapeModel + ?Sized>(
 ) -> Result<Evaluated, ModelError> {
     let sampled = draw_shape(model, spec, conditional, draw)?;
     let (shapes, privacy) = training.of_cluster(sampled.cluster)?;
-    let biomarkers = Biomarkers::from_mesh(&sampled.mesh)?;
+    let biomarkers = reference.measure(&sampled.mesh)?;
     let accepted = joint_flags(intervals, &biomarkers);
     let nearest = shapes.nearest(&sampled.mesh.vertices)?;
     Ok(Evaluated {
@@ -320,7 +321,7 @@ pub fn sample_cohort_given<M: ShapeModel + Sync + ?Sized>(
         let step = wanted.clamp(DRAW_BATCH, MAX_DRAW_BATCH);
         let batch: Vec<u64> = (next..limit.min(next + step)).collect();
         let evaluated = parallel_map(&batch, |&d| {
-            evaluate_draw(model, &intervals, training, spec, conditional, d)
+            evaluate_draw(model, reference, &intervals, training, spec, conditional, d)
         });
         for (draw, result) in batch.iter().zip(evaluated) {
             next = draw + 1;

@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use super::ModelError;
 use crate::eval::Biomarkers;
 use crate::eval::acceptance::{Intervals, ReferenceStats};
+use crate::eval::biomarkers::ExtentAxes;
 use crate::mesh::Mesh;
 
 /// Below this many training meshes a population is small: its statistics are rough and
@@ -23,6 +24,14 @@ pub struct ReferencePopulation {
     pub values: Vec<Vec<f64>>,
     /// Reference statistics of each biomarker.
     pub stats: Vec<ReferenceStats>,
+    /// Axes of the extents in `values`; members are measured the same way (populations
+    /// stored before surface axes existed read as `vertices`).
+    #[serde(default = "axes_before_surface")]
+    pub extent_axes: ExtentAxes,
+}
+
+fn axes_before_surface() -> ExtentAxes {
+    ExtentAxes::Vertices
 }
 
 impl ReferencePopulation {
@@ -44,7 +53,14 @@ impl ReferencePopulation {
             units: Biomarkers::UNITS.iter().map(|s| (*s).to_owned()).collect(),
             values,
             stats,
+            extent_axes: ExtentAxes::Surface,
         })
+    }
+
+    /// Biomarkers of a mesh measured as the population's were, so that they can be judged
+    /// against its intervals.
+    pub fn measure(&self, mesh: &Mesh) -> Result<Biomarkers, ModelError> {
+        Ok(Biomarkers::measure(mesh, self.extent_axes)?)
     }
 
     /// Training meshes behind the statistics.
@@ -88,5 +104,35 @@ impl ReferencePopulation {
     /// The three acceptance intervals of each biomarker.
     pub fn intervals(&self) -> Vec<Intervals> {
         self.stats.iter().map(ReferenceStats::intervals).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::phantom::{self, Family};
+
+    #[test]
+    fn stored_populations_keep_the_axes_they_were_measured_along() {
+        let meshes: Vec<Mesh> = phantom::generate(Family::Lv, 3, 5)
+            .into_iter()
+            .map(|p| p.mesh)
+            .collect();
+        let population = ReferencePopulation::from_meshes(&meshes).unwrap();
+        assert_eq!(population.extent_axes, ExtentAxes::Surface);
+        // A population stored before the field existed was measured along vertex axes,
+        // and its members are measured the same way.
+        let mut stored = serde_json::to_value(&population).unwrap();
+        stored.as_object_mut().unwrap().remove("extent_axes");
+        let old: ReferencePopulation = serde_json::from_value(stored).unwrap();
+        assert_eq!(old.extent_axes, ExtentAxes::Vertices);
+        assert_eq!(
+            old.measure(&meshes[0]).unwrap(),
+            Biomarkers::measure(&meshes[0], ExtentAxes::Vertices).unwrap()
+        );
+        assert_eq!(
+            population.measure(&meshes[0]).unwrap(),
+            Biomarkers::from_mesh(&meshes[0]).unwrap()
+        );
     }
 }

@@ -126,7 +126,8 @@ async fn tiny_phantoms_to_asmg_model_to_cohort() {
     let model = get(&s, &format!("/v1/models/{model_id}")).await;
     assert_eq!(model["model_type"], "asmg");
     assert_eq!(model["params"]["features"], "hybrid");
-    assert_eq!(model["params"]["gamma"], 1.0);
+    assert_eq!(model["params"]["gamma"], 0.1);
+    assert_eq!(model["params"]["calibrate_spread"], true);
     let atlas_vertices = model["atlas"]["vertex_count"].as_u64().unwrap() as usize;
     assert!(
         (100..=ATLAS_VERTICES + ATLAS_VERTICES / 4).contains(&atlas_vertices),

@@ -22,9 +22,13 @@ async fn tiny_phantoms_to_refined_model_atlases_and_clustered_cohort() {
     let job = submit(&s, &body).await;
     let (done, seen) = wait_for(&s, job["id"].as_str().unwrap(), Duration::from_secs(400)).await;
     assert_eq!(done["status"], "succeeded", "{done}");
+    // Polling may miss a short stage (the stored timings below show the refinement ran);
+    // what a dashboard sees must only move forward.
+    let fractions: Vec<f64> = seen.iter().filter_map(|p| p["fraction"].as_f64()).collect();
+    assert!(!fractions.is_empty(), "no progress seen");
     assert!(
-        seen.iter().any(|p| p["stage"] == "refinement"),
-        "no refinement progress among {seen:?}"
+        fractions.windows(2).all(|w| w[0] <= w[1]),
+        "progress went back: {fractions:?}"
     );
 
     let model_id = done["model_id"].as_str().unwrap();

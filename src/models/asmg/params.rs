@@ -151,8 +151,7 @@ pub struct AsmgParams {
     pub cpd_max_iterations: usize,
     /// Give drawn shapes the training shapes' mean and spread along the principal modes of
     /// the training population's normalised shapes (a generator's draws vary less than its
-    /// training shapes). Off by default: it widens the volume and area spread but also the
-    /// middle extent, lowering the joint acceptance; see the README.
+    /// training shapes; without it, cohorts of 100 LV phantoms had half the volume sd).
     pub calibrate_spread: bool,
 }
 
@@ -180,7 +179,7 @@ impl Default for AsmgParams {
             tolerance: DEFAULT_TOLERANCE_MM,
             multistart: true,
             cpd_max_iterations: DEFAULT_CPD_MAX_ITERATIONS,
-            calibrate_spread: false,
+            calibrate_spread: true,
         }
     }
 }

@@ -20,7 +20,11 @@ use crate::models::ModelError;
 /// `report_smoothing_settings`): γ = 1 keeps 23% of the noise (RMS) and changes the volume
 /// by −0.3%, and a stretch of the atlas by (1.1, 0.95, 1.05) keeps its volume to 0.4%;
 /// γ = 5 keeps 9% of the noise but loses 1.2% of the stretch's volume, γ = 50 loses 5.3%.
-pub const DEFAULT_GAMMA: f64 = 1.0;
+/// γ = 0.1 keeps 65% of that noise. It is the default: smoothing contracts the normalised
+/// shapes towards each other, and
+/// on 100 LV phantoms γ = 1 left the cohort's area sd at 0.76 of the training meshes' where
+/// γ = 0.1 gives 0.98 (with the spread calibration and a 120× attention multiplier).
+pub const DEFAULT_GAMMA: f64 = 0.1;
 
 /// The thesis's smoothing weight γ (eq. 4.5); shrinks shapes when applied to positions.
 pub const THESIS_GAMMA: f64 = 50.0;

@@ -128,9 +128,17 @@ fn default_smoothing_keeps_a_phantom_volume() {
     let smoothed = smoother.smooth(&noisy, &atlas.vertices).unwrap();
     let change = (volume_of(&smoothed, &atlas) / v0 - 1.0).abs();
     assert!(change < MAX_VOLUME_CHANGE, "volume change {change}");
-    // The noise is mostly removed.
+    // The default γ = 0.1 takes off about a third of the noise (it smooths lightly so that
+    // the normalised shapes keep the population's spread); γ = 1 takes off three quarters.
     let ratio = rms(&smoothed, &atlas.vertices) / rms(&noisy, &atlas.vertices);
-    assert!(ratio < 0.6, "noise kept: {ratio}");
+    assert!(ratio < 0.8, "noise kept: {ratio}");
+    let stronger = params(1.0, Smoothing::Displacement, SmoothingMethod::Exact);
+    let smoothed_more = smooth(&noisy, &atlas, &stronger).unwrap();
+    let ratio_more = rms(&smoothed_more, &atlas.vertices) / rms(&noisy, &atlas.vertices);
+    assert!(
+        ratio_more < 0.3 && ratio_more < ratio,
+        "noise kept at γ = 1: {ratio_more}"
+    );
 
     // A smooth deformation of the atlas survives.
     let target = stretched(&atlas.vertices);
