@@ -141,6 +141,18 @@ impl Config {
         }
     }
 
+    /// The configuration with empty tokens taken as no token: `COHORTFORGE_READ_TOKEN=` (as a
+    /// compose file's `${COHORTFORGE_READ_TOKEN:-}` sets it) means no read token, not a
+    /// token too short to accept.
+    pub fn without_empty_tokens(mut self) -> Self {
+        for token in [&mut self.admin_token, &mut self.read_token] {
+            if token.as_deref().is_some_and(str::is_empty) {
+                *token = None;
+            }
+        }
+        self
+    }
+
     /// Checks that the configuration is safe and usable.
     pub fn validate(&self) -> Result<(), ConfigError> {
         if self.max_body_bytes == 0 {
@@ -189,6 +201,25 @@ mod tests {
         c.insecure = false;
         c.admin_token = Some("0123456789abcdef".into());
         assert!(c.validate().is_ok());
+    }
+
+    #[test]
+    fn empty_tokens_are_no_tokens() {
+        let mut c = Config::local(PathBuf::from("x.db"));
+        c.admin_token = Some("0123456789abcdef".into());
+        c.read_token = Some(String::new());
+        let c = c.without_empty_tokens();
+        assert_eq!(c.read_token, None);
+        assert!(c.validate().is_ok());
+        // An empty admin token is no token: off loopback that still needs --insecure.
+        let mut open = Config::local(PathBuf::from("x.db"));
+        open.bind = "0.0.0.0:8080".parse().unwrap();
+        open.admin_token = Some(String::new());
+        let open = open.without_empty_tokens();
+        assert!(matches!(
+            open.validate(),
+            Err(ConfigError::OpenNonLoopback(_))
+        ));
     }
 
     #[test]

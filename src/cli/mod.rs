@@ -104,6 +104,7 @@ pub fn run(cli: Cli) -> CliResult {
 }
 
 fn serve(config: Config) -> CliResult {
+    let config = config.without_empty_tokens();
     config.validate().map_err(|e| e.to_string())?;
     let database = config.database.clone();
     let bind = config.bind;
