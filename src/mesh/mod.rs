@@ -14,6 +14,7 @@ pub mod measures;
 mod orient;
 pub mod phantom;
 pub mod simplify;
+pub mod smooth;
 pub mod topology;
 pub mod validate;
 

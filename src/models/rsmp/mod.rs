@@ -20,6 +20,8 @@ use crate::geometry::correspondence::{
 use crate::geometry::cpd::{NonRigidParams, nonrigid_cpd};
 use crate::geometry::pca::{PcaModel, PcaParams, Sampling};
 use crate::mesh::Mesh;
+use crate::mesh::adjacency::Adjacency;
+use crate::mesh::smooth::taubin;
 
 mod params;
 
@@ -47,6 +49,13 @@ pub struct RsmpModel {
     /// as in models stored before it existed).
     #[serde(default)]
     pub nonrigid: Option<NonRigidParams>,
+    /// Taubin steps on every drawn shape (0 in models stored before they existed, which
+    /// therefore draw the same shapes as before).
+    #[serde(default)]
+    pub draw_smoothing_steps: usize,
+    /// The template's adjacency, built on the first smoothed draw.
+    #[serde(skip)]
+    template_adjacency: std::sync::OnceLock<Adjacency>,
 }
 
 impl RsmpModel {
@@ -65,6 +74,18 @@ impl RsmpModel {
             .map(|p| self.normalisation.undo(p))
             .collect();
         Mesh::new(vertices, self.template.faces.clone())
+    }
+
+    /// A drawn shape `[D]` as a mesh, smoothed by the model's Taubin steps.
+    fn drawn_mesh(&self, x: &[f64]) -> Mesh {
+        let mut mesh = self.to_mesh(x);
+        if self.draw_smoothing_steps > 0 {
+            let adjacency = self
+                .template_adjacency
+                .get_or_init(|| Adjacency::from_mesh(&self.template));
+            mesh.vertices = taubin(&mesh.vertices, adjacency, self.draw_smoothing_steps);
+        }
+        mesh
     }
 
     /// Registers `mesh` to the template: its normalised shape and its vertices in the
@@ -96,7 +117,7 @@ impl ShapeModel for RsmpModel {
 
     fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Draw, ModelError> {
         Ok(Draw {
-            mesh: self.to_mesh(&self.pca.sample(rng, sampling)),
+            mesh: self.drawn_mesh(&self.pca.sample(rng, sampling)),
             cluster: 0,
         })
     }
@@ -142,7 +163,7 @@ impl ShapeModel for RsmpModel {
                     .zip(&self.pca.variances)
                     .map(|(e, l)| e * l.sqrt())
                     .collect();
-                Ok(self.to_mesh(&self.pca.reconstruct(&b)?))
+                Ok(self.drawn_mesh(&self.pca.reconstruct(&b)?))
             })
             .collect()
     }
@@ -223,6 +244,8 @@ fn fit(
         },
         alignment: params.alignment(),
         nonrigid: params.nonrigid(),
+        draw_smoothing_steps: params.draw_smoothing_steps,
+        template_adjacency: std::sync::OnceLock::new(),
     };
     let total = training.len() as u64;
     let registered = map_items(
@@ -335,5 +358,36 @@ mod tests {
         assert_eq!(back_model.pca, model.pca);
         assert_eq!(back.training.shapes.len(), 6);
         assert!(back.training.privacy[0].threshold_mm > 0.0);
+        assert_eq!(back_model.draw_smoothing_steps, 2);
+
+        // Drawn shapes are smoothed by the model's Taubin steps; without them the same draw
+        // is the plain PCA shape, with more surface (folds).
+        let mut plain = back_model.clone();
+        plain.draw_smoothing_steps = 0;
+        let draw = |m: &RsmpModel| {
+            m.sample(
+                &mut crate::models::cohort::draw_rng(5, 1),
+                Sampling::Gaussian,
+            )
+            .unwrap()
+            .mesh
+        };
+        let (smoothed, unsmoothed) = (draw(back_model), draw(&plain));
+        let area = crate::mesh::measures::area_mm2;
+        assert!(area(&smoothed) < area(&unsmoothed));
+        let volumes = (
+            crate::mesh::measures::volume_ml(&smoothed),
+            crate::mesh::measures::volume_ml(&unsmoothed),
+        );
+        assert!((volumes.0 / volumes.1 - 1.0).abs() < 0.02, "{volumes:?}");
+        // A model stored before the field existed draws unsmoothed, as it did.
+        let mut stored = serde_json::to_value(back_model).unwrap();
+        stored
+            .as_object_mut()
+            .unwrap()
+            .remove("draw_smoothing_steps");
+        let old: RsmpModel = serde_json::from_value(stored).unwrap();
+        assert_eq!(old.draw_smoothing_steps, 0);
+        assert_eq!(draw(&old), unsmoothed);
     }
 }
