@@ -5,8 +5,9 @@ Written from the method (SPEC sections 2.2-2.3), with pycpd for rigid CPD and sc
 PCA. It runs `cohortforge fit` and `cohortforge evaluate` on the same mesh directories, then
 its own pipeline with the same template (the training mesh whose vertex count is closest to
 the median), the same registration settings (24 axis-permutation starts ranked by surface
-fit, outlier weight 0.1, no scale), the same number of PCA modes, Gaussian sampling and the
-same distances, and prints both side by side with the wall time of each.
+fit, outlier weight 0.1, no scale), generalised Procrustes alignment of the normalised shapes
+(unless the params say `"procrustes": false`), the same number of PCA modes, Gaussian
+sampling and the same distances, and prints both side by side with the wall time of each.
 
   python3 scripts/rsmp_reference.py --cohortforge target/release/cohortforge \
       --train phantoms/train --test phantoms/test [--params '{...}'] [--samples 100]
@@ -156,6 +157,32 @@ def normalised_shape(template, data, to_template, p):
     return to_template(h)
 
 
+def kabsch(src, dst):
+    """Rotation r and translation t with dst ≈ src @ r.T + t (least squares, proper)."""
+    cs, cd = src.mean(0), dst.mean(0)
+    u, _, vt = np.linalg.svd((dst - cd).T @ (src - cs))
+    d = np.sign(np.linalg.det(u @ vt))
+    r = u @ np.diag([1.0, 1.0, d]) @ vt
+    return r, cd - cs @ r.T
+
+
+def generalised_procrustes(shapes, iterations=20):
+    """Rigid poses (r, t) aligning each shape [M, 3] onto the mean of the aligned shapes,
+    the mean kept in the frame of the plain average."""
+    anchor = np.mean(shapes, axis=0)
+    mean = anchor
+    for _ in range(iterations):
+        aligned = [h @ r.T + t for h in shapes for r, t in [kabsch(h, mean)]]
+        nxt = np.mean(aligned, axis=0)
+        r, t = kabsch(nxt, anchor)
+        nxt = nxt @ r.T + t
+        moved = np.mean(np.sum((nxt - mean) ** 2, axis=1))
+        mean = nxt
+        if moved < 1e-18 * np.mean(np.sum((anchor - anchor.mean(0)) ** 2, axis=1)):
+            break
+    return [kabsch(h, mean) for h in shapes]
+
+
 def distances(g, h):
     """HD, ED (g to h), ED* (h to g), CD, all vertex to vertex (mm)."""
     ab = cKDTree(h).query(g)[0]
@@ -168,20 +195,28 @@ def summary(rows):
             for k in ("hd", "ed", "ed_star", "cd")}
 
 
-def reference(train, test, n_modes, samples, seed):
+def reference(train, test, n_modes, samples, seed, procrustes):
     template_index = median_resolution_index(train)
     template, template_faces = train[template_index]
     shapes, aligned = [], []
     for vertices, _ in train:
         to_template, p = register(template, vertices)
-        shapes.append(normalised_shape(template, vertices, to_template, p).ravel())
+        shapes.append(normalised_shape(template, vertices, to_template, p))
         aligned.append(to_template(vertices))
-    pca = PCA(n_components=n_modes, svd_solver="full").fit(np.array(shapes))
+    if procrustes:
+        poses = generalised_procrustes(shapes)
+        shapes = [h @ r.T + t for h, (r, t) in zip(shapes, poses)]
+        aligned = [a @ r.T + t for a, (r, t) in zip(aligned, poses)]
+    pca = PCA(n_components=n_modes, svd_solver="full").fit(np.array([h.ravel() for h in shapes]))
+    mean_shape = pca.mean_.reshape(-1, 3)
     generalisation, matching = [], []
     for vertices, _ in test:
         to_template, p = register(template, vertices)
         h = normalised_shape(template, vertices, to_template, p)
         original = to_template(vertices)
+        if procrustes:
+            r, t = kabsch(h, mean_shape)
+            h, original = h @ r.T + t, original @ r.T + t
         reconstruction = pca.inverse_transform(pca.transform(h.ravel()[None]))[0].reshape(-1, 3)
         generalisation.append(distances(reconstruction, original))
         matching.append(distances(original, h))
@@ -251,7 +286,9 @@ def main():
     _, train = read_dir(args.train)
     _, test = read_dir(args.test)
     started = time.perf_counter()
-    ref = reference(train, test, ours_result["n_modes"], args.samples, args.seed)
+    # Generalised Procrustes before the PCA, as cohortforge does unless its params turn it off.
+    procrustes = json.loads(args.params or "{}").get("procrustes", True)
+    ref = reference(train, test, ours_result["n_modes"], args.samples, args.seed, procrustes)
     ref_s = time.perf_counter() - started
     training_volumes = [volume_ml(v, f) for v, f in train]
 

@@ -6,6 +6,7 @@ pub mod correspondence;
 pub mod cpd;
 pub mod distance;
 mod error;
+pub mod gpa;
 pub mod kdtree;
 pub mod pca;
 pub mod points;

@@ -18,7 +18,9 @@ use crate::geometry::correspondence::{
     flatten, normalised_shape, refined_correspondences, unflatten,
 };
 use crate::geometry::cpd::{NonRigidParams, nonrigid_cpd};
+use crate::geometry::gpa::generalised_procrustes;
 use crate::geometry::pca::{PcaModel, PcaParams, Sampling};
+use crate::geometry::procrustes::weighted_procrustes;
 use crate::mesh::Mesh;
 use crate::mesh::adjacency::Adjacency;
 use crate::mesh::smooth::taubin;
@@ -53,6 +55,11 @@ pub struct RsmpModel {
     /// therefore draw the same shapes as before).
     #[serde(default)]
     pub draw_smoothing_steps: usize,
+    /// Whether the normalised shapes were aligned to their mean before the PCA (generalised
+    /// Procrustes); then a reconstructed mesh's normalised shape is aligned to the PCA mean
+    /// first. Models stored before it existed were not.
+    #[serde(default)]
+    pub procrustes: bool,
     /// The template's adjacency, built on the first smoothed draw.
     #[serde(skip)]
     template_adjacency: std::sync::OnceLock<Adjacency>,
@@ -106,8 +113,30 @@ impl RsmpModel {
             }
             None => normalised_shape(&self.template.vertices, &mesh.vertices, &cpd)?,
         };
-        Ok((h, aligned))
+        if !self.procrustes {
+            return Ok((h, aligned));
+        }
+        let mean = unflatten(&self.pca.mean)
+            .into_iter()
+            .map(|p| self.normalisation.undo(p))
+            .collect::<Vec<_>>();
+        let pose = weighted_procrustes(&h, &mean, None, false)?;
+        Ok((pose.apply_all(&h), pose.apply_all(&aligned)))
     }
+}
+
+/// Aligns every normalised shape to their common mean (generalised Procrustes), moving each
+/// mesh's vertices in the template frame with it.
+fn align_to_mean(
+    shapes: &mut [Vec<[f64; 3]>],
+    aligned: &mut [Vec<[f64; 3]>],
+) -> Result<(), ModelError> {
+    let gpa = generalised_procrustes(shapes)?;
+    for ((h, vertices), pose) in shapes.iter_mut().zip(aligned).zip(&gpa.transforms) {
+        *h = pose.apply_all(h);
+        *vertices = pose.apply_all(vertices);
+    }
+    Ok(())
 }
 
 impl ShapeModel for RsmpModel {
@@ -245,6 +274,7 @@ fn fit(
         alignment: params.alignment(),
         nonrigid: params.nonrigid(),
         draw_smoothing_steps: params.draw_smoothing_steps,
+        procrustes: false,
         template_adjacency: std::sync::OnceLock::new(),
     };
     let total = training.len() as u64;
@@ -256,8 +286,12 @@ fn fit(
             Ok(stages.report(progress, done as u64, total, message, None)?)
         },
     )?;
-    let (shapes, aligned): (Vec<_>, Vec<_>) = registered.into_iter().unzip();
+    let (mut shapes, mut aligned): (Vec<_>, Vec<_>) = registered.into_iter().unzip();
     stages.enter("pca");
+    if params.procrustes {
+        align_to_mean(&mut shapes, &mut aligned)?;
+        model.procrustes = true;
+    }
     model.normalisation = Normalisation::fit(&aligned);
     let flattened: Vec<Vec<f64>> = shapes.iter().map(|h| model.to_pca_space(h)).collect();
     let pca_params = PcaParams {
@@ -359,6 +393,7 @@ mod tests {
         assert_eq!(back.training.shapes.len(), 6);
         assert!(back.training.privacy[0].threshold_mm > 0.0);
         assert_eq!(back_model.draw_smoothing_steps, 2);
+        assert!(back_model.procrustes);
 
         // Drawn shapes are smoothed by the model's Taubin steps; without them the same draw
         // is the plain PCA shape, with more surface (folds).
@@ -386,8 +421,10 @@ mod tests {
             .as_object_mut()
             .unwrap()
             .remove("draw_smoothing_steps");
+        stored.as_object_mut().unwrap().remove("procrustes");
         let old: RsmpModel = serde_json::from_value(stored).unwrap();
         assert_eq!(old.draw_smoothing_steps, 0);
+        assert!(!old.procrustes);
         assert_eq!(draw(&old), unsmoothed);
     }
 }

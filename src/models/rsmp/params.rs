@@ -48,6 +48,10 @@ pub struct RsmpParams {
     /// phantoms two steps brought the cohort's sphericity sd from 1.27 to 0.98 of the
     /// training meshes'.
     pub draw_smoothing_steps: usize,
+    /// Align the normalised shapes to their mean by rotation and translation (generalised
+    /// Procrustes, in correspondence) before the PCA, so that no mode is spent on what the
+    /// registration left of each mesh's pose; reconstructions are aligned the same way.
+    pub procrustes: bool,
 }
 
 impl Default for RsmpParams {
@@ -66,6 +70,7 @@ impl Default for RsmpParams {
             nonrigid_beta: NonRigidParams::default().beta,
             nonrigid_lambda: NonRigidParams::default().lambda,
             draw_smoothing_steps: DEFAULT_DRAW_SMOOTHING_STEPS,
+            procrustes: true,
         }
     }
 }
