@@ -25,8 +25,14 @@ pub struct PrivacyThreshold {
     pub percentile: f64,
     /// Members nearer than this to a training shape are near copies, mm.
     pub threshold_mm: f64,
-    /// Each training shape's distance to its nearest other training shape, mm.
+    /// Each training shape's distance to its nearest other training shape, mm (with
+    /// `leave_one_out`: from its projection on the hull of the others).
     pub training_nn_mm: Vec<f64>,
+    /// Whether the distances are measured from each training shape's projection on the
+    /// affine hull of the others (few training shapes) instead of from the shape itself.
+    /// Thresholds stored before it existed are not.
+    #[serde(default)]
+    pub leave_one_out: bool,
 }
 
 /// A shape's nearest training shape.
@@ -178,20 +184,60 @@ impl CorrespondedShapes {
             });
         }
         let ks: Vec<usize> = (0..self.shapes.len()).collect();
-        let training_nn_mm = parallel_map(&ks, |&k| {
-            (0..self.shapes.len())
-                .filter(|&j| j != k)
-                .filter_map(|j| {
-                    mean_distance_below(&self.shapes[k], &self.shapes[j], f64::INFINITY)
-                })
-                .fold(f64::INFINITY, f64::min)
-        });
-        let threshold_mm = percentile(&training_nn_mm, percentile_p).unwrap_or(0.0);
-        Ok(PrivacyThreshold {
-            percentile: percentile_p,
-            threshold_mm,
+        let training_nn_mm = parallel_map(&ks, |&k| self.nearest_other(&self.shapes[k], k));
+        Ok(PrivacyThreshold::from_distances(
+            percentile_p,
             training_nn_mm,
-        })
+            false,
+        ))
+    }
+
+    /// The near-copy threshold for a few training shapes: the `percentile` of the distance
+    /// from each shape's projection on the affine hull of the others
+    /// ([`super::hull::leave_one_out_projections`]) to its nearest other training shape.
+    /// `shapes` are the same shapes as `self`'s (at least 3).
+    pub fn leave_one_out_threshold<S: AsRef<[[f64; 3]]>>(
+        &self,
+        shapes: &[S],
+        percentile_p: f64,
+    ) -> Result<PrivacyThreshold, EvalError> {
+        if shapes.len() != self.shapes.len() {
+            return Err(EvalError::DimensionMismatch {
+                what: "training shapes",
+                expected: self.shapes.len(),
+                found: shapes.len(),
+            });
+        }
+        let projected = super::hull::leave_one_out_projections(shapes)?;
+        let ks: Vec<usize> = (0..projected.len()).collect();
+        let distances = parallel_map(&ks, |&k| {
+            self.nearest_other(&ShapeColumns::new(&projected[k]), k)
+        });
+        Ok(PrivacyThreshold::from_distances(
+            percentile_p,
+            distances,
+            true,
+        ))
+    }
+
+    /// Mean corresponding-vertex distance from `shape` to the nearest training shape other
+    /// than `skip`, mm.
+    fn nearest_other(&self, shape: &ShapeColumns, skip: usize) -> f64 {
+        (0..self.shapes.len())
+            .filter(|&j| j != skip)
+            .filter_map(|j| mean_distance_below(shape, &self.shapes[j], f64::INFINITY))
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+impl PrivacyThreshold {
+    fn from_distances(percentile_p: f64, training_nn_mm: Vec<f64>, leave_one_out: bool) -> Self {
+        Self {
+            percentile: percentile_p,
+            threshold_mm: percentile(&training_nn_mm, percentile_p).unwrap_or(0.0),
+            training_nn_mm,
+            leave_one_out,
+        }
     }
 }
 
@@ -201,6 +247,39 @@ mod tests {
 
     fn cloud(offset: f64, n: usize) -> Vec<[f64; 3]> {
         (0..n).map(|i| [i as f64, (i % 3) as f64, offset]).collect()
+    }
+
+    #[test]
+    fn leave_one_out_distances_by_hand() {
+        // One-vertex shapes A (0,0), B (10,0), C (5,5): A and B project onto C (the line BC
+        // and AC meet their perpendicular from A and B at C), C onto (5,0), 5 mm from A.
+        let shapes = vec![
+            vec![[0.0, 0.0, 0.0]],
+            vec![[10.0, 0.0, 0.0]],
+            vec![[5.0, 5.0, 0.0]],
+        ];
+        let corresponded = CorrespondedShapes::new(&shapes).unwrap();
+        let plain = corresponded.privacy_threshold(0.5).unwrap();
+        let loo = corresponded.leave_one_out_threshold(&shapes, 0.5).unwrap();
+        let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-4);
+        let d = 50f64.sqrt();
+        assert!(
+            close(&plain.training_nn_mm, &[d, d, d]),
+            "{:?}",
+            plain.training_nn_mm
+        );
+        assert!(!plain.leave_one_out);
+        assert!(
+            close(&loo.training_nn_mm, &[0.0, 0.0, 5.0]),
+            "{:?}",
+            loo.training_nn_mm
+        );
+        assert!(loo.leave_one_out);
+        assert!(
+            corresponded
+                .leave_one_out_threshold(&shapes[..2], 0.5)
+                .is_err()
+        );
     }
 
     #[test]

@@ -166,7 +166,8 @@ fn to_f64(shapes: &[Vec<[f32; 3]>]) -> Vec<Vec<[f64; 3]>> {
 impl TrainingShapes {
     /// From aligned training vertices and their normalised shapes per atlas (model frame,
     /// mm); each atlas's threshold is the `percentile` of its normalised shapes'
-    /// nearest-neighbour distances.
+    /// nearest-neighbour distances, below [`reference::SMALL_POPULATION`] shapes measured
+    /// from each shape's projection on the hull of the others.
     pub fn new(
         aligned: &[Vec<[f64; 3]>],
         normalised: &[Vec<Vec<[f64; 3]>>],
@@ -174,7 +175,16 @@ impl TrainingShapes {
     ) -> Result<Self, ModelError> {
         let privacy = normalised
             .iter()
-            .map(|shapes| CorrespondedShapes::new(shapes)?.privacy_threshold(percentile))
+            .map(|shapes| {
+                let corresponded = CorrespondedShapes::new(shapes)?;
+                // With few shapes every draw lies near their hull, which a new patient does
+                // not: compare like with like (each shape as the others' hull makes it).
+                if (3..reference::SMALL_POPULATION).contains(&shapes.len()) {
+                    corresponded.leave_one_out_threshold(shapes, percentile)
+                } else {
+                    corresponded.privacy_threshold(percentile)
+                }
+            })
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Self {
             shapes: to_f32(aligned),
