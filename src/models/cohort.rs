@@ -155,10 +155,21 @@ pub struct PrivacyReport {
     pub percentile: f64,
     /// How the distance is measured.
     pub distance: String,
+    /// What the threshold's percentile is taken of: `nearest_training_shape` (each training
+    /// shape's distance to its nearest other) or, below 20 training meshes,
+    /// `leave_one_out_projection` (the distance from each training shape's projection on the
+    /// affine hull of the others, which is what a model of a few shapes makes of a patient it
+    /// has not seen). Absent in reports stored before it existed: `nearest_training_shape`.
+    #[serde(default = "nearest_training_shape")]
+    pub threshold_basis: String,
     /// Near copies among the members.
     pub near_copies: usize,
     /// Near copies drawn and replaced (with `exclude_near_copies`).
     pub near_copies_replaced: usize,
+}
+
+fn nearest_training_shape() -> String {
+    "nearest_training_shape".to_owned()
 }
 
 /// The random stream of draw `draw`: independent of the others and of their order.
@@ -399,6 +410,11 @@ pub fn sample_cohort_given<M: ShapeModel + Sync + ?Sized>(
         thresholds_mm: training.privacy.iter().map(|p| p.threshold_mm).collect(),
         percentile: first.percentile,
         distance: "mean distance between corresponding vertices".to_owned(),
+        threshold_basis: if first.leave_one_out {
+            "leave_one_out_projection".to_owned()
+        } else {
+            nearest_training_shape()
+        },
         near_copies: members.iter().filter(|m| m.near_copy).count(),
         near_copies_replaced: replaced,
     };

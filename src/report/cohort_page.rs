@@ -70,10 +70,15 @@ pub fn cohort_page(c: &CohortPage<'_>) -> String {
     let p = &c.report.privacy;
     let _ = write!(
         body,
-        "<h2>Privacy guard</h2><p>{} near copies (nearer than {:.2} mm, the {}th percentile of the training shapes' own nearest-neighbour distances, {}); {} replaced by new draws.</p>",
+        "<h2>Privacy guard</h2><p>{} near copies (nearer than {:.2} mm, the {}th percentile of {}, {}); {} replaced by new draws.</p>",
         p.near_copies,
         p.threshold_mm,
         (p.percentile * 100.0).round(),
+        if p.threshold_basis == "leave_one_out_projection" {
+            "how far each training shape, projected on the hull of the others, lies from the nearest other (leave-one-out, as the population is small)"
+        } else {
+            "the training shapes' own nearest-neighbour distances"
+        },
         escape(&p.distance),
         p.near_copies_replaced
     );

@@ -68,6 +68,11 @@ async fn large_cohorts_are_drawn_by_the_workers_and_paged() {
     assert_eq!(done["member_count"], 12);
     assert_eq!(done["progress"]["fraction"], 1.0);
     assert!(done["report"]["biomarkers"]["volume_ml"].is_object());
+    // 8 training meshes: the near-copy threshold compares like with like.
+    assert_eq!(
+        done["report"]["privacy"]["threshold_basis"],
+        "leave_one_out_projection"
+    );
     assert!(
         done["members"].is_null(),
         "12 members are above the inline limit of 5"

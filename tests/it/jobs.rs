@@ -215,6 +215,11 @@ async fn phantoms_to_model_to_reproducible_cohort() {
             .unwrap()
             > 0.0
     );
+    // 24 training meshes: each one's distance to its nearest other.
+    assert_eq!(
+        cohort["report"]["privacy"]["threshold_basis"],
+        "nearest_training_shape"
+    );
     for m in cohort["members"].as_array().unwrap() {
         assert!(m["nearest_training_mm"].as_f64().unwrap() > 0.0);
         assert!(m["near_copy"].is_boolean());
