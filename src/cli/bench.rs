@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use super::bench_clusters::ClusterBench;
 use super::bench_models::{BenchModel, ModelEntry, bench_models, parse_model_entry};
+use super::bench_privacy::held_out_privacy;
 use super::bench_report::{
     BenchReport, CohortBench, ConditionalBench, FitBench, ModelBench, ReferenceFidelity,
     RenderBench, SpecificityBench, VolumeFidelity, print_markdown,
@@ -15,7 +16,9 @@ use super::memory::{self, StepMemory};
 use super::progress::StderrProgress;
 use super::{CliResult, write_json};
 use crate::eval::SummaryStats;
+use crate::eval::acceptance::joint_acceptance_rates;
 use crate::eval::fidelity::Fidelity;
+use crate::eval::gaussian_reference::{GAUSSIAN_REFERENCE_DRAWS, gaussian_joint_acceptance};
 use crate::geometry::pca::Sampling;
 use crate::jobs::fit::fit_model;
 use crate::mesh::measures::volume_ml;
@@ -289,15 +292,27 @@ fn bench_model(
         )
     });
     drop(members);
+    eprintln!(
+        "{name}: {} held-out meshes against the near-copy threshold",
+        data.test.len()
+    );
+    let held_out_privacy =
+        held_out_privacy(model, &data.test, &normalised, &stored.training.privacy)?;
     let text = |e: crate::eval::EvalError| e.to_string();
     let fresh_columns =
         crate::models::cohort::columns(&data.fresh_biomarkers.iter().collect::<Vec<_>>());
+    let intervals = outcome.reference.intervals();
     let fidelity = VolumeFidelity {
         synthetic: SummaryStats::from_values(&volumes).map_err(text)?,
         fidelity: Fidelity::between(&volumes, &data.fresh_volumes).map_err(text)?,
-        fresh_acceptance: crate::eval::acceptance::joint_acceptance_rates(
-            &outcome.reference.intervals(),
-            &fresh_columns,
+        fresh_acceptance: joint_acceptance_rates(&intervals, &fresh_columns).map_err(text)?,
+        training_acceptance: joint_acceptance_rates(&intervals, &outcome.reference.values)
+            .map_err(text)?,
+        gaussian_acceptance: gaussian_joint_acceptance(
+            &intervals,
+            &outcome.reference.values,
+            GAUSSIAN_REFERENCE_DRAWS,
+            args.seed,
         )
         .map_err(text)?,
     };
@@ -321,6 +336,7 @@ fn bench_model(
         evaluation: outcome.summary.evaluation,
         cohort,
         fidelity,
+        held_out_privacy,
         specificity,
         clusters,
     })

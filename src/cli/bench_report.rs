@@ -76,6 +76,8 @@ pub struct ModelBench {
     pub cohort: CohortBench,
     /// The cohort's volumes against the generator's.
     pub fidelity: VolumeFidelity,
+    /// Held-out meshes through the model against the near-copy threshold.
+    pub held_out_privacy: super::bench_privacy::HeldOutPrivacy,
     /// Timed specificity of many samples.
     pub specificity: SpecificityBench,
     /// Clusters of multi-atlas models.
@@ -150,6 +152,11 @@ pub struct VolumeFidelity {
     /// Joint acceptance of the fresh phantoms (real subjects of the same population) against
     /// this model's training intervals: what a faithful cohort scores.
     pub fresh_acceptance: crate::eval::acceptance::Rates,
+    /// Joint acceptance of the training meshes against their own intervals.
+    pub training_acceptance: crate::eval::acceptance::Rates,
+    /// Joint acceptance of draws from the Gaussian with the training biomarkers' mean and
+    /// covariance: what a generator with a Gaussian latent space can be expected to score.
+    pub gaussian_acceptance: crate::eval::acceptance::Rates,
 }
 
 /// Timed specificity against the training meshes.
@@ -336,6 +343,22 @@ fn spread_table(report: &BenchReport) -> String {
         }),
     ));
     rows.push(row(
+        "held-out meshes through the model flagged as near copies, % (about 5% when calibrated)",
+        models.iter().map(|m| {
+            let h = &m.held_out_privacy;
+            let share = |k: usize| 100.0 * k as f64 / h.meshes.max(1) as f64;
+            let plain = if h.leave_one_out {
+                format!(
+                    " (plain threshold: {:.1})",
+                    share(h.flagged_by_nearest_training_shape)
+                )
+            } else {
+                String::new()
+            };
+            format!("{:.1} of {}{plain}", share(h.flagged), h.meshes)
+        }),
+    ));
+    rows.push(row(
         "joint A^μ, %",
         models
             .iter()
@@ -346,6 +369,18 @@ fn spread_table(report: &BenchReport) -> String {
         models
             .iter()
             .map(|m| format!("{:.1}", 100.0 * m.fidelity.fresh_acceptance.mean)),
+    ));
+    rows.push(row(
+        "joint A^μ of the training meshes against their own intervals, %",
+        models
+            .iter()
+            .map(|m| format!("{:.1}", 100.0 * m.fidelity.training_acceptance.mean)),
+    ));
+    rows.push(row(
+        "joint A^μ of a Gaussian with the training biomarkers' mean and covariance, %",
+        models
+            .iter()
+            .map(|m| format!("{:.1}", 100.0 * m.fidelity.gaussian_acceptance.mean)),
     ));
     table(&header("mean ratio / sd ratio / KS D", report), &rows)
 }

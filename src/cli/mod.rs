@@ -4,6 +4,7 @@
 pub mod bench;
 mod bench_clusters;
 pub mod bench_models;
+pub mod bench_privacy;
 pub mod bench_report;
 pub mod memory;
 pub mod mesh_dir;

@@ -206,6 +206,9 @@ fn fidelity_markdown(f: &crate::models::spread::FidelitySummary) -> String {
         f.near_copies,
         super::tables::table(&header, &rows)
     );
+    if let Some(sentence) = f.acceptance_sentence() {
+        out.push_str(&format!("\n{sentence}.\n"));
+    }
     if let Some(note) = &f.population_note {
         out.push_str(&format!("\nSmall population: {note}.\n"));
     }

@@ -100,6 +100,13 @@ pub struct Flags {
 }
 
 impl Flags {
+    /// Accepted under every criterion: the start of a joint judgement.
+    pub const ALL: Self = Self {
+        range: true,
+        mode: true,
+        mean: true,
+    };
+
     /// Accepted under each criterion by both.
     pub fn and(self, other: Self) -> Self {
         Self {
@@ -144,7 +151,8 @@ impl Intervals {
     }
 }
 
-fn rates(flags: impl Iterator<Item = Flags>) -> Rates {
+/// Shares of `flags` accepted under each criterion.
+pub(crate) fn rates(flags: impl Iterator<Item = Flags>) -> Rates {
     let (mut n, mut r, mut m, mut u) = (0usize, 0usize, 0usize, 0usize);
     for f in flags {
         n += 1;
@@ -183,16 +191,13 @@ pub fn joint_acceptance_rates<C: AsRef<[f64]>>(
             found: bad.as_ref().len(),
         });
     }
-    let all = Flags {
-        range: true,
-        mode: true,
-        mean: true,
-    };
     Ok(rates((0..n).map(|i| {
         intervals
             .iter()
             .zip(columns)
-            .fold(all, |acc, (iv, col)| acc.and(iv.accepted(col.as_ref()[i])))
+            .fold(Flags::ALL, |acc, (iv, col)| {
+                acc.and(iv.accepted(col.as_ref()[i]))
+            })
     })))
 }
 

@@ -6,6 +6,7 @@ pub mod biomarkers;
 pub mod clustering;
 mod error;
 pub mod fidelity;
+pub mod gaussian_reference;
 pub mod hull;
 pub mod kde;
 pub mod metrics;

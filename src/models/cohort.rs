@@ -180,15 +180,10 @@ pub fn draw_rng(seed: u64, draw: u64) -> ChaCha8Rng {
 }
 
 fn joint_flags(intervals: &[Intervals], biomarkers: &Biomarkers) -> Flags {
-    let all = Flags {
-        range: true,
-        mode: true,
-        mean: true,
-    };
     intervals
         .iter()
         .zip(biomarkers.values())
-        .fold(all, |acc, (iv, v)| acc.and(iv.accepted(v)))
+        .fold(Flags::ALL, |acc, (iv, v)| acc.and(iv.accepted(v)))
 }
 
 /// Fewest draws evaluated together (in parallel, then taken in draw order).

@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use super::cohort::{CohortSpec, Criterion, TrainingIndex, sample_cohort};
 use super::{ModelError, ReferencePopulation, ShapeModel, TrainingShapes};
 use crate::eval::fidelity::Spread;
+use crate::eval::gaussian_reference::{GAUSSIAN_REFERENCE_DRAWS, gaussian_joint_acceptance};
 use crate::geometry::pca::Sampling;
 
 /// Members of the cohort drawn to judge a fit's spread.
@@ -32,9 +33,33 @@ pub struct FidelitySummary {
     /// Members drawn again because a biomarker fell outside a small population's plausible
     /// range.
     pub implausible_replaced: usize,
+    /// Joint A^μ of the cohort: the share of members inside `μ ± 2σ` of every biomarker
+    /// (absent in summaries stored before it was kept).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_acceptance: Option<f64>,
+    /// The joint A^μ of draws from the Gaussian with the training biomarkers' mean and
+    /// covariance: what a generator with a Gaussian latent space can be expected to reach
+    /// (populations with lighter tails than a Gaussian score higher themselves).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gaussian_joint_acceptance: Option<f64>,
     /// Said when the training population is too small for its estimates.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub population_note: Option<String>,
+}
+
+impl FidelitySummary {
+    /// The cohort's joint A^μ beside the Gaussian yardstick, in words (absent in summaries
+    /// stored before both were kept).
+    pub fn acceptance_sentence(&self) -> Option<String> {
+        let (cohort, gaussian) = (self.joint_acceptance?, self.gaussian_joint_acceptance?);
+        Some(format!(
+            "{:.1}% of the members lie inside μ ± 2σ of every biomarker (joint A^μ); draws from \
+             a Gaussian with the training biomarkers' mean and covariance do {:.1}% of the \
+             time, which is what a model with a Gaussian latent space can be expected to reach",
+            100.0 * cohort,
+            100.0 * gaussian
+        ))
+    }
 }
 
 /// Draws [`FIDELITY_MEMBERS`] members (seeded from `seed`) and compares them with the
@@ -66,6 +91,15 @@ pub fn fidelity_summary<M: ShapeModel + Sync + ?Sized>(
             .filter_map(|(name, b)| b.spread.map(|s| (name.clone(), s)))
             .collect(),
         near_copies: report.privacy.near_copies,
+        joint_acceptance: Some(report.acceptance.mean),
+        gaussian_joint_acceptance: gaussian_joint_acceptance(
+            &reference.intervals(),
+            &reference.values,
+            GAUSSIAN_REFERENCE_DRAWS,
+            spec.seed,
+        )
+        .ok()
+        .map(|r| r.mean),
         implausible_replaced: report.implausible_replaced,
         population_note: report.population_note,
     })

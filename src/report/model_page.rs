@@ -91,6 +91,9 @@ fn fidelity_section(s: &ModelSummary) -> String {
         &sentence,
         &rows,
     );
+    if let Some(sentence) = f.acceptance_sentence() {
+        let _ = write!(out, "<p>{}.</p>", escape(&sentence));
+    }
     if let Some(note) = &f.population_note {
         let _ = write!(
             out,

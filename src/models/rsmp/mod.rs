@@ -357,6 +357,20 @@ mod tests {
             generalisation.hd.mean, summary.evaluation.specificity.hd.mean
         );
         assert!(generalisation.hd.mean > 0.0 && generalisation.hd.mean < 20.0);
+        // The fit's own cohort: its joint A^μ beside the Gaussian yardstick of the six
+        // training biomarkers (a fraction that 100,000 Gaussian draws of six biomarkers
+        // cannot make 0 or 1).
+        let fidelity = summary.fidelity.as_ref().expect("a fidelity summary");
+        let joint = fidelity.joint_acceptance.expect("the cohort's joint A^μ");
+        let gaussian = fidelity.gaussian_joint_acceptance.expect("the yardstick");
+        assert!((0.0..=1.0).contains(&joint), "{joint}");
+        assert!(gaussian > 0.5 && gaussian < 1.0, "{gaussian}");
+        let sentence = fidelity.acceptance_sentence().unwrap();
+        assert!(
+            sentence.contains(&format!("{:.1}%", 100.0 * gaussian)),
+            "{sentence}"
+        );
+        assert!(fidelity.population_note.is_some());
         let sample = model
             .sample(
                 &mut crate::models::cohort::draw_rng(5, 0),
