@@ -163,6 +163,27 @@ impl ShapeModel for RsmpModel {
         })
     }
 
+    /// Each normalised training shape through the PCA as a draw is made: projected on the
+    /// kept modes and smoothed by the draw's Taubin steps. A member lies in the span of the
+    /// modes and so, even when it copies no one, nearer a training shape than the training
+    /// shapes (each with its own residual off the span) lie to each other: on 100 liver
+    /// phantoms the threshold from the raw shapes flagged 8 of 25 held-out patients'
+    /// reconstructions as near copies.
+    fn regenerated_training(
+        &self,
+        normalised: &[Vec<Vec<[f64; 3]>>],
+    ) -> Result<Option<Vec<Vec<Vec<[f64; 3]>>>>, ModelError> {
+        let shapes = normalised.first().map(Vec::as_slice).unwrap_or_default();
+        let regenerated = shapes
+            .iter()
+            .map(|shape| {
+                let b = self.pca.project(&self.to_pca_space(shape))?;
+                Ok(self.drawn_mesh(&self.pca.reconstruct(&b)?).vertices)
+            })
+            .collect::<Result<Vec<_>, ModelError>>()?;
+        Ok(Some(vec![regenerated]))
+    }
+
     /// The PCA runs on coordinates divided by `scale_mm`: λ in mm² is `λ·scale_mm²`.
     fn principal_variances_mm2(&self) -> Option<Vec<f64>> {
         let s2 = self.normalisation.scale_mm.powi(2);
@@ -398,6 +419,22 @@ mod tests {
             assert!(
                 (kept / truth - 1.0).abs() < 0.03,
                 "{kept:.1} of {truth:.1} ml"
+            );
+        }
+        // The privacy guard keeps each patient as the model draws it (in the span of the
+        // modes): a training patient sent in again comes back nearest to itself and is
+        // flagged.
+        let guard = &outcome.model.training;
+        let index =
+            crate::eval::privacy::CorrespondedShapes::new(&guard.normalised_f64()[0]).unwrap();
+        for (k, mesh) in training.iter().enumerate() {
+            let again = model.reconstruct(mesh).unwrap().mesh.vertices;
+            let nearest = index.nearest(&again).unwrap();
+            assert_eq!(nearest.index, k);
+            assert!(
+                nearest.distance_mm < guard.privacy[0].threshold_mm,
+                "{nearest:?} against {} mm",
+                guard.privacy[0].threshold_mm
             );
         }
         let bytes = outcome.model.to_bytes().unwrap();
