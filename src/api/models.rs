@@ -73,6 +73,14 @@ pub struct ModelView {
     /// Seconds per stage of the fit.
     #[schema(value_type = Vec<crate::models::StageTiming>)]
     pub timings: serde_json::Value,
+    /// How a seeded cohort of 1,000 drawn at the end of the fit spreads against the training
+    /// meshes: per biomarker the means, sds, their ratios and the KS statistic, the near
+    /// copies, the joint A^μ beside what a Gaussian with the training biomarkers' mean and
+    /// covariance reaches, and a note when the population is too small. Absent for models
+    /// fitted before it was measured.
+    #[schema(value_type = Option<crate::models::spread::FidelitySummary>)]
+    #[serde(skip_serializing_if = "serde_json::Value::is_null")]
+    pub fidelity: serde_json::Value,
     /// Creation time (RFC 3339, UTC).
     pub created_at: String,
 }
@@ -217,6 +225,7 @@ impl From<ModelRecord> for ModelView {
             training_count: field("training_count"),
             holdout_count: field("holdout_count"),
             timings: field("timings"),
+            fidelity: field("fidelity"),
             id: r.id,
             model_type: r.model_type,
             params: r.params,

@@ -19,7 +19,7 @@ pub const FIDELITY_MEMBERS: usize = 1000;
 const FIDELITY_SEED_OFFSET: u64 = 0xf1de_1175;
 
 /// The spread of a fitted model's cohort against its training population.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct FidelitySummary {
     /// Members drawn (Gaussian sampling, every draw kept).
     pub members: usize,

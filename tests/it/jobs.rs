@@ -189,6 +189,17 @@ async fn phantoms_to_model_to_reproducible_cohort() {
     assert_eq!(model["evaluation"]["distance"], "vertex-to-vertex");
     let explained = model["explained_variance"].as_array().unwrap();
     assert!((explained.last().unwrap().as_f64().unwrap() - 1.0).abs() < 1e-9);
+    // The fit's own cohort against the training meshes, with the Gaussian yardstick.
+    let fidelity = &model["fidelity"];
+    assert_eq!(fidelity["members"], 1000);
+    let sd_ratio = fidelity["biomarkers"]["volume_ml"]["sd_ratio"]
+        .as_f64()
+        .unwrap();
+    assert!(sd_ratio > 0.0, "{fidelity}");
+    let joint = fidelity["joint_acceptance"].as_f64().unwrap();
+    let gaussian = fidelity["gaussian_joint_acceptance"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&joint), "{fidelity}");
+    assert!(gaussian > 0.5 && gaussian < 1.0, "{fidelity}");
 
     let request = json!({"size": 50, "seed": 7, "acceptance": {"criterion": "mean"}});
     let url = s.url(&format!("/v1/models/{model_id}/cohorts"));

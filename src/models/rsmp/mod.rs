@@ -168,12 +168,19 @@ impl ShapeModel for RsmpModel {
     /// modes and so, even when it copies no one, nearer a training shape than the training
     /// shapes (each with its own residual off the span) lie to each other: on 100 liver
     /// phantoms the threshold from the raw shapes flagged 8 of 25 held-out patients'
-    /// reconstructions as near copies.
+    /// reconstructions as near copies. From [`SMALL_POPULATION`] training meshes on.
+    ///
+    /// [`SMALL_POPULATION`]: crate::models::reference::SMALL_POPULATION
     fn regenerated_training(
         &self,
         normalised: &[Vec<Vec<[f64; 3]>>],
     ) -> Result<Option<Vec<Vec<Vec<[f64; 3]>>>>, ModelError> {
         let shapes = normalised.first().map(Vec::as_slice).unwrap_or_default();
+        // Below this the leave-one-out threshold already compares like with like (the
+        // quickstart's 8 meshes: 0 of 100 members flagged with it, 26 with projected shapes).
+        if shapes.len() < crate::models::reference::SMALL_POPULATION {
+            return Ok(None);
+        }
         let regenerated = shapes
             .iter()
             .map(|shape| {
