@@ -428,9 +428,8 @@ mod tests {
                 "{kept:.1} of {truth:.1} ml"
             );
         }
-        // The privacy guard keeps each patient as the model draws it (in the span of the
-        // modes): a training patient sent in again comes back nearest to itself and is
-        // flagged.
+        // A training patient sent in again comes back nearest to itself and is flagged (six
+        // meshes: the guard keeps the normalised shapes with the leave-one-out threshold).
         let guard = &outcome.model.training;
         let index =
             crate::eval::privacy::CorrespondedShapes::new(&guard.normalised_f64()[0]).unwrap();
