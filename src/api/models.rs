@@ -112,6 +112,10 @@ pub struct ClusterAtlasView {
     pub euler_characteristic: Option<i64>,
     /// Probability that a draw comes from this cluster.
     pub prior: f64,
+    /// Training meshes' worth of weight its generator learned from, `(Σ_k w_km)² / Σ_k w_km²`
+    /// (its member count when every weight is 0 or 1). Below 10 the generator mostly
+    /// reproduces its meshes.
+    pub effective_meshes: f64,
 }
 
 /// One mesh's membership.
@@ -132,6 +136,10 @@ pub struct ClustersView {
     pub atlases: Vec<ClusterAtlasView>,
     /// Every training and held-out mesh.
     pub assignments: Vec<AssignmentView>,
+    /// Said when a cluster's generator learns from fewer than 10 training meshes' worth of
+    /// weight, with what to do about it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
 }
 
 /// The clusters recorded in the summary, or, for models with one atlas (which record
@@ -157,6 +165,7 @@ fn clusters_of(
         .iter()
         .zip(&recorded.training)
         .chain(provenance.holdout_mesh_ids.iter().zip(&recorded.holdout));
+    let effective = recorded.effective_meshes();
     ClustersView {
         atlases: atlases
             .iter()
@@ -165,8 +174,10 @@ fn clusters_of(
                 vertex_count: a.vertex_count,
                 euler_characteristic: a.euler_characteristic,
                 prior: recorded.priors.get(a.index).copied().unwrap_or(0.0),
+                effective_meshes: effective.get(a.index).copied().unwrap_or(0.0),
             })
             .collect(),
+        note: recorded.thin_cluster_note(),
         assignments: ids
             .map(|(id, weights)| AssignmentView {
                 mesh_id: id.clone(),

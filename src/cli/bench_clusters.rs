@@ -18,6 +18,8 @@ pub struct ClusterBench {
     pub sizes: Vec<usize>,
     /// `π_m`.
     pub priors: Vec<f64>,
+    /// Training meshes' worth of weight each cluster's generator learned from.
+    pub effective_meshes: Vec<f64>,
     /// Adjusted Rand index of the winning clusters against the labels (labelled families).
     pub adjusted_rand_index: Option<f64>,
     /// Per label, the training phantoms each cluster won.
@@ -53,6 +55,7 @@ impl ClusterBench {
         let mut bench = Self {
             sizes,
             priors: clusters.priors.clone(),
+            effective_meshes: clusters.effective_meshes(),
             adjusted_rand_index: None,
             by_label: Vec::new(),
             mixing_members: None,
@@ -124,9 +127,15 @@ pub fn cluster_markdown(model: &str, c: &ClusterBench) -> String {
             .join(" / ")
     };
     let priors: Vec<String> = c.priors.iter().map(|p| format!("{p:.3}")).collect();
+    let effective: Vec<String> = c
+        .effective_meshes
+        .iter()
+        .map(|e| format!("{e:.1}"))
+        .collect();
     let mut out = format!(
-        "- **{model}**: training phantoms per cluster {}; priors π {}",
+        "- **{model}**: training phantoms per cluster {} (meshes' worth of weight {}); priors π {}",
         list(&c.sizes),
+        effective.join(" / "),
         priors.join(" / ")
     );
     if let Some(ari) = c.adjusted_rand_index {

@@ -222,10 +222,20 @@ fn clusters_markdown(
     holdout: &[String],
 ) -> String {
     let priors: Vec<String> = c.priors.iter().map(|p| format!("{p:.3}")).collect();
+    let effective: Vec<String> = c
+        .effective_meshes()
+        .iter()
+        .map(|e| format!("{e:.1}"))
+        .collect();
     let mut out = format!(
-        "Clusters (priors {}):\n\n| mesh | set | cluster | weights |\n|---|---|---|---|\n",
-        priors.join(" / ")
+        "Clusters (priors {}; training meshes' worth of weight {}):\n\n",
+        priors.join(" / "),
+        effective.join(" / ")
     );
+    if let Some(note) = c.thin_cluster_note() {
+        out.push_str(&format!("Few meshes per cluster: {note}.\n\n"));
+    }
+    out.push_str("| mesh | set | cluster | weights |\n|---|---|---|---|\n");
     let rows = (training.iter().zip(&c.training).map(|r| (r, "training")))
         .chain(holdout.iter().zip(&c.holdout).map(|r| (r, "held out")));
     for ((name, weights), set) in rows {

@@ -156,6 +156,13 @@ fn clusters_section(m: &ModelPage<'_>) -> String {
         t.push_str("<p class=\"note\">One atlas: every mesh is in cluster 0.</p>");
         return t;
     };
+    if let Some(note) = c.thin_cluster_note() {
+        let _ = write!(
+            t,
+            "<p class=\"note\">Few meshes per cluster: {}.</p>",
+            escape(&note)
+        );
+    }
     t.push_str("<p>Soft weight w<sub>km</sub> of each mesh in each cluster (eq. 5.13); the largest is in bold.</p><table class=\"weights\"><tr><th>mesh</th><th>set</th>");
     for i in 0..atlases.len() {
         let _ = write!(t, "<th>cluster {i}</th>");

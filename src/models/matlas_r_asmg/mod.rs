@@ -4,7 +4,8 @@
 //!
 //! 1. pre-alignment and Ψ as in ASMG, one Ψ for every atlas;
 //! 2. the initial atlases: the meshes named in `atlases`, or the medoids of a k-medoids
-//!    clustering of the pre-aligned meshes ([`medoids`]; our choice, the thesis starts from
+//!    clustering of the pre-aligned meshes (`"auto"`: three, fewer below 30 meshes, so that
+//!    each generator has about ten meshes to learn from) ([`medoids`]; our choice, the thesis starts from
 //!    expert shapes), each simplified to `atlas_vertices`. With one atlas the initial atlas
 //!    is chosen as `atlas-r-asmg` chooses it, so that M = 1 is `atlas-r-asmg`;
 //! 3. Algorithm 1 for several atlases: every shape normalised to every atlas (`h^m_k`),
@@ -104,8 +105,12 @@ fn initial_atlases(
     input: &FitInput<'_>,
 ) -> Result<Vec<Mesh>, ModelError> {
     let asmg = &params.refined.asmg;
-    match &params.atlases {
-        AtlasesChoice::Count(1) => Ok(vec![starting_atlas(
+    let choice = match &params.atlases {
+        AtlasesChoice::Auto(_) => AtlasesChoice::Count(params.atlases.count(aligned.meshes.len())),
+        given => given.clone(),
+    };
+    match &choice {
+        AtlasesChoice::Auto(_) | AtlasesChoice::Count(1) => Ok(vec![starting_atlas(
             asmg,
             &aligned.meshes,
             input.template_index(),

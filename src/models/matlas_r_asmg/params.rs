@@ -1,16 +1,25 @@
 //! Parameters of an mAtlas-R-ASMG fit (`model_type: "matlas-r-asmg"`): every
-//! `atlas-r-asmg` parameter plus `atlases`, the number of atlases or the meshes that start
-//! them.
+//! `atlas-r-asmg` parameter plus `atlases`, the number of atlases, `"auto"` or the meshes
+//! that start them.
 
 use serde::{Deserialize, Serialize};
 
 use crate::models::ModelError;
 use crate::models::atlas_r_asmg::AtlasRAsmgParams;
+use crate::models::clusters::MESHES_PER_GENERATOR;
 
-/// Default number of atlases (thesis §5.4 uses three for the liver).
+/// Most atlases `"auto"` chooses (thesis §5.4 uses three for the liver).
 pub const DEFAULT_ATLASES: usize = 3;
 /// Most atlases a fit accepts.
 pub const MAX_ATLASES: usize = 16;
+
+/// The word `"auto"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Auto {
+    /// As many atlases as the population supports.
+    #[serde(rename = "auto")]
+    Auto,
+}
 
 /// How the initial atlases are chosen.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -21,30 +30,42 @@ pub enum AtlasesChoice {
     Count(usize),
     /// The given training meshes (mesh ids), one atlas each, in order.
     Meshes(Vec<String>),
+    /// [`DEFAULT_ATLASES`] atlases, fewer when the population is small: one per
+    /// [`MESHES_PER_GENERATOR`] training meshes, at least one (the default).
+    Auto(Auto),
 }
 
 impl Default for AtlasesChoice {
     fn default() -> Self {
-        Self::Count(DEFAULT_ATLASES)
+        Self::Auto(Auto::Auto)
     }
 }
 
 impl AtlasesChoice {
-    /// The number of atlases.
-    pub fn count(&self) -> usize {
+    /// The number of atlases for `training_meshes` meshes.
+    pub fn count(&self, training_meshes: usize) -> usize {
         match self {
             Self::Count(m) => *m,
             Self::Meshes(ids) => ids.len(),
+            Self::Auto(_) => auto_count(training_meshes),
         }
     }
 
     /// The mesh ids given, in order (empty for a count).
     pub fn mesh_ids(&self) -> Vec<&str> {
         match self {
-            Self::Count(_) => Vec::new(),
+            Self::Count(_) | Self::Auto(_) => Vec::new(),
             Self::Meshes(ids) => ids.iter().map(String::as_str).collect(),
         }
     }
+}
+
+/// The atlases `"auto"` fits on `training_meshes` meshes: [`DEFAULT_ATLASES`], fewer so that
+/// each generator learns from about [`MESHES_PER_GENERATOR`] meshes or more, at least one.
+/// On 8 LV phantoms three generators made 46% of their members near copies of a training
+/// shape, two 37%, one 2%.
+pub fn auto_count(training_meshes: usize) -> usize {
+    (training_meshes / MESHES_PER_GENERATOR).clamp(1, DEFAULT_ATLASES)
 }
 
 /// Parameters of an mAtlas-R-ASMG fit, written as one flat object.
@@ -53,7 +74,8 @@ pub struct MatlasParams {
     /// Everything `atlas-r-asmg` takes (its `atlas` field picks the single atlas of M = 1).
     #[serde(flatten)]
     pub refined: AtlasRAsmgParams,
-    /// A count `M` (default 3) or a list of mesh ids, one initial atlas each.
+    /// A count `M`, `"auto"` (the default: 3, fewer below 30 training meshes) or a list of
+    /// mesh ids, one initial atlas each.
     pub atlases: AtlasesChoice,
 }
 
@@ -66,7 +88,7 @@ impl MatlasParams {
             Some(v) => serde_json::from_value(v).map_err(|_| {
                 ModelError::invalid(
                     "atlases",
-                    "must be a number of atlases (e.g. 3) or a list of mesh ids",
+                    "must be a number of atlases (e.g. 3), \"auto\" or a list of mesh ids",
                 )
             })?,
         };
@@ -78,8 +100,8 @@ impl MatlasParams {
 
     /// Checks every value (the error names the parameter): what a fit takes.
     pub fn check(self) -> Result<CheckedMatlasParams, ModelError> {
-        let count = self.atlases.count();
-        if !(1..=MAX_ATLASES).contains(&count) {
+        let count = self.atlases.count(0);
+        if !matches!(self.atlases, AtlasesChoice::Auto(_)) && !(1..=MAX_ATLASES).contains(&count) {
             return Err(ModelError::invalid(
                 "atlases",
                 format!("must give between 1 and {MAX_ATLASES} atlases, got {count}"),
@@ -113,7 +135,9 @@ impl MatlasParams {
     pub fn mesh_ids(&self) -> Vec<&str> {
         match &self.atlases {
             AtlasesChoice::Meshes(_) => self.atlases.mesh_ids(),
-            AtlasesChoice::Count(_) => self.refined.asmg.atlas_mesh_id().into_iter().collect(),
+            AtlasesChoice::Count(_) | AtlasesChoice::Auto(_) => {
+                self.refined.asmg.atlas_mesh_id().into_iter().collect()
+            }
         }
     }
 }
@@ -143,10 +167,13 @@ mod tests {
     #[test]
     fn atlases_are_a_count_or_mesh_ids() {
         let p = MatlasParams::from_json(&serde_json::Value::Null).unwrap();
-        assert_eq!(p.atlases, AtlasesChoice::Count(3));
+        assert_eq!(p.atlases, AtlasesChoice::Auto(Auto::Auto));
+        let given = serde_json::json!({"atlases": "auto"});
+        assert_eq!(MatlasParams::from_json(&given).unwrap().atlases, p.atlases);
+        assert_eq!(field(serde_json::json!({"atlases": "many"})), "atlases");
         let p = MatlasParams::from_json(&serde_json::json!({"atlases": ["a", "b"], "w_cd": 2.0}))
             .unwrap();
-        assert_eq!(p.atlases.count(), 2);
+        assert_eq!(p.atlases.count(100), 2);
         assert_eq!(p.mesh_ids(), vec!["a", "b"]);
         assert_eq!(p.refined.refinement.w_cd, 2.0);
         assert_eq!(field(serde_json::json!({"atlases": 0})), "atlases");
@@ -166,12 +193,23 @@ mod tests {
         );
         // Echoed flat, with `atlases` beside the other fields.
         let json = serde_json::to_value(MatlasParams::default()).unwrap();
-        assert_eq!(json["atlases"], 3);
+        assert_eq!(json["atlases"], "auto");
         assert_eq!(json["epochs_refine"], 3);
         assert_eq!(
             MatlasParams::from_label("m5"),
             Some(serde_json::json!({"atlases": 5}))
         );
         assert_eq!(MatlasParams::from_label("hgcn"), None);
+    }
+
+    #[test]
+    fn auto_gives_each_generator_about_ten_meshes() {
+        let auto = AtlasesChoice::default();
+        let counts: Vec<usize> = [0, 8, 19, 20, 29, 30, 139]
+            .iter()
+            .map(|&n| auto.count(n))
+            .collect();
+        assert_eq!(counts, vec![1, 1, 1, 2, 2, 3, 3]);
+        assert_eq!(AtlasesChoice::Count(4).count(8), 4);
     }
 }
