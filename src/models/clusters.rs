@@ -110,17 +110,21 @@ impl ClusterSummary {
             .iter()
             .enumerate()
             .filter(|(_, e)| **e < MESHES_PER_GENERATOR as f64)
-            .map(|(m, e)| format!("cluster {m} on {e:.1}"))
+            .enumerate()
+            .map(|(k, (m, e))| match k {
+                0 => format!("cluster {m} learns from {e:.1} training meshes' worth of weight"),
+                _ => format!("cluster {m} from {e:.1}"),
+            })
             .collect();
         if thin.is_empty() {
             return None;
         }
         let supported = (self.training.len() / MESHES_PER_GENERATOR).max(1);
         Some(format!(
-            "the generators learn from few training meshes ({}; fewer than \
-             {MESHES_PER_GENERATOR} each): such a generator mostly reproduces its meshes, so \
-             many draws are near copies that the privacy guard rejects. {} training meshes \
-             support {supported} atlas{}; fit with fewer atlases (or `\"auto\"`) or add meshes",
+            "{} (fewer than {MESHES_PER_GENERATOR}): a generator fitted on so few mostly \
+             reproduces its meshes, so many draws are near copies that the privacy guard \
+             rejects. {} training meshes support {supported} atlas{}: fit with fewer atlases \
+             (\"atlases\": \"auto\" chooses) or add meshes",
             thin.join(", "),
             self.training.len(),
             if supported == 1 { "" } else { "es" },
@@ -156,11 +160,13 @@ mod tests {
         let rows = |n: usize| (0..n).map(|k| vec![(k % 2) as f64, ((k + 1) % 2) as f64]);
         let thin = summary(rows(8).collect()).thin_cluster_note().unwrap();
         assert!(
-            thin.contains("cluster 0 on 4.0, cluster 1 on 4.0"),
+            thin.starts_with(
+                "cluster 0 learns from 4.0 training meshes' worth of weight, cluster 1 from 4.0 (fewer than 10):"
+            ),
             "{thin}"
         );
         assert!(
-            thin.contains("8 training meshes support 1 atlas;"),
+            thin.contains("8 training meshes support 1 atlas:"),
             "{thin}"
         );
         assert_eq!(summary(rows(40).collect()).thin_cluster_note(), None);
