@@ -7,7 +7,7 @@ use super::embeddings::Embeddings;
 use super::init::{AtlasInit, initial_atlas};
 use super::learn::{LearnedAtlas, ShapeInput, learn_atlas};
 use super::model::{
-    AsmgModel, NetworkSizes, align, embed_mesh, embeddings_of, flatten_f32, nn_error, simplified,
+    AsmgModel, NetworkSizes, align, embed_mesh, embeddings_of, nn_error, simplified,
 };
 use super::monitor::StageMonitor;
 use super::params::{AsmgParams, AtlasChoice};
@@ -296,7 +296,10 @@ pub(crate) fn train_generator(
             format!("generator {} of {count}", m + 1),
         ),
     };
-    let shapes: Vec<Vec<f32>> = data.shapes.iter().map(|h| flatten_f32(h)).collect();
+    let super::pose::GeneratorShapes {
+        flat: shapes,
+        procrustes_mean,
+    } = super::pose::generator_shapes(data.shapes, params.procrustes)?;
     let atlas = data.atlas;
     let vae_config = BetaVaeConfig::new(3 * atlas.vertex_count()).with_latent(params.latent_dim);
     let vae_training = BetaVaeTraining {
@@ -338,6 +341,7 @@ pub(crate) fn train_generator(
         Some(networks),
     );
     model.latent_prior = Some(latent_prior);
+    model.procrustes_mean = procrustes_mean;
     if params.calibrate_spread {
         model.calibrate_spread(&shapes, data.weights, seed)?;
     }

@@ -29,6 +29,7 @@ mod monitor;
 pub mod multi_atlas;
 mod parallel;
 pub mod params;
+mod pose;
 mod scores;
 pub mod smoothing;
 pub mod soft_clusters;

@@ -122,6 +122,10 @@ pub struct AsmgModel {
     /// stored before it existed, or fitted with `calibrate_spread` off: draws as decoded).
     #[serde(default)]
     pub spread_calibration: Option<SpreadCalibration>,
+    /// The mean the generator's shapes were aligned to, `[N_μ, 3]` mm (fitted with
+    /// `procrustes`; absent in models stored before it: shapes enter as normalised).
+    #[serde(default)]
+    pub procrustes_mean: Option<Vec<[f64; 3]>>,
     /// The networks once built (boxed: they are large and most copies of a model never
     /// build them).
     #[serde(skip)]
@@ -215,6 +219,7 @@ impl AsmgModel {
             generator_weights: weights.1,
             latent_prior: None,
             spread_calibration: None,
+            procrustes_mean: None,
             networks: OnceLock::new(),
         };
         if let Some(n) = networks {
@@ -280,36 +285,12 @@ impl AsmgModel {
     }
 
     /// A mesh with the atlas connectivity from flattened coordinates (mm).
-    fn to_mesh(&self, flat: &[f32]) -> Mesh {
+    pub(super) fn to_mesh(&self, flat: &[f32]) -> Mesh {
         let vertices = flat
             .chunks_exact(3)
             .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
             .collect();
         Mesh::new(vertices, self.atlas.faces.clone())
-    }
-
-    /// The generator's reconstruction (encoder mean, decoder) of a normalised shape
-    /// (`[N_μ, 3]`, mm): a mesh with the atlas connectivity.
-    pub fn regenerate(&self, normalised: &[[f64; 3]]) -> Result<Mesh, ModelError> {
-        let nets = self.networks()?;
-        let flat = nets
-            .generator
-            .reconstruct(&[flatten_f32(normalised)])
-            .map_err(nn_error)?;
-        flat.first()
-            .map(|s| self.to_mesh(s))
-            .ok_or_else(|| ModelError::Numerical("the generator returned nothing".to_owned()))
-    }
-
-    /// The generator's reconstructions of many normalised shapes (`[N_μ, 3]` mm each).
-    pub fn regenerate_all(
-        &self,
-        shapes: &[Vec<[f64; 3]>],
-    ) -> Result<Vec<Vec<[f64; 3]>>, ModelError> {
-        let nets = self.networks()?;
-        let flat: Vec<Vec<f32>> = shapes.iter().map(|h| flatten_f32(h)).collect();
-        let out = nets.generator.reconstruct(&flat).map_err(nn_error)?;
-        Ok(out.iter().map(|s| self.to_mesh(s).vertices).collect())
     }
 
     /// A latent code `[L]` drawn as cohorts draw them: clipped standard coordinates mapped

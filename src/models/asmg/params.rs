@@ -154,6 +154,14 @@ pub struct AsmgParams {
     /// training shapes: without it, and with `variance_multiplier` 30 and `gamma` 1, cohorts
     /// of 100 LV phantoms had half the training meshes' volume sd).
     pub calibrate_spread: bool,
+    /// Align the shapes a generator learns from to their mean (rigid generalised Procrustes)
+    /// first, so that no latent direction is spent on the pose the pre-alignment left; a new
+    /// mesh's normalised shape is aligned to that mean before it is encoded, and its
+    /// reconstruction moved back to the mesh's pose. Off by default: on 100 LV phantoms
+    /// (seed 1) it raised joint A^μ from 83.3% to 88.2% and cut generalisation ED from 2.17
+    /// to 1.92 mm, but narrowed the cohort's volume sd from 0.875 to 0.840 of the training
+    /// meshes'.
+    pub procrustes: bool,
 }
 
 impl Default for AsmgParams {
@@ -181,6 +189,7 @@ impl Default for AsmgParams {
             multistart: true,
             cpd_max_iterations: DEFAULT_CPD_MAX_ITERATIONS,
             calibrate_spread: true,
+            procrustes: false,
         }
     }
 }
