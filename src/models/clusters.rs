@@ -78,6 +78,12 @@ pub fn winning_cluster(weights: &[f64]) -> usize {
 /// made 46%, 37% and 2% of their members near copies of a training shape.
 pub const MESHES_PER_GENERATOR: usize = 10;
 
+/// How many atlases `training_meshes` meshes support: one per [`MESHES_PER_GENERATOR`],
+/// at least one.
+pub fn supported_atlases(training_meshes: usize) -> usize {
+    (training_meshes / MESHES_PER_GENERATOR).max(1)
+}
+
 impl ClusterSummary {
     /// How many training meshes each cluster's generator learns from: Kish's effective
     /// sample size of its weights, `(Σ_k w_km)² / Σ_k w_km²` (its member count when the
@@ -119,7 +125,7 @@ impl ClusterSummary {
         if thin.is_empty() {
             return None;
         }
-        let supported = (self.training.len() / MESHES_PER_GENERATOR).max(1);
+        let supported = supported_atlases(self.training.len());
         Some(format!(
             "{} (fewer than {MESHES_PER_GENERATOR}): a generator fitted on so few mostly \
              reproduces its meshes, so many draws are near copies that the privacy guard \

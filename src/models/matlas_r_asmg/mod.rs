@@ -5,9 +5,9 @@
 //! 1. pre-alignment and Ψ as in ASMG, one Ψ for every atlas;
 //! 2. the initial atlases: the meshes named in `atlases`, or the medoids of a k-medoids
 //!    clustering of the pre-aligned meshes (`"auto"`: three, fewer below 30 meshes, so that
-//!    each generator has about ten meshes to learn from) ([`medoids`]; our choice, the thesis starts from
-//!    expert shapes), each simplified to `atlas_vertices`. With one atlas the initial atlas
-//!    is chosen as `atlas-r-asmg` chooses it, so that M = 1 is `atlas-r-asmg`;
+//!    each generator has about ten meshes to learn from; [`medoids`]; our choice, the thesis
+//!    starts from expert shapes), each simplified to `atlas_vertices`. With one atlas the
+//!    initial atlas is chosen as `atlas-r-asmg` chooses it, so that M = 1 is `atlas-r-asmg`;
 //! 3. Algorithm 1 for several atlases: every shape normalised to every atlas (`h^m_k`),
 //!    `d_km = mean_j‖h'^m_kj − x_μm,j‖²`, `w_km = softmax_m(−α·d_km)` with `α = 1/std(d)`,
 //!    and every atlas moved by the update weighted by its `w_km` with its own `γ_m`;
@@ -105,52 +105,59 @@ fn initial_atlases(
     input: &FitInput<'_>,
 ) -> Result<Vec<Mesh>, ModelError> {
     let asmg = &params.refined.asmg;
-    let choice = match &params.atlases {
-        AtlasesChoice::Auto(_) => AtlasesChoice::Count(params.atlases.count(aligned.meshes.len())),
-        given => given.clone(),
+    let ids = match &params.atlases {
+        AtlasesChoice::Meshes(ids) => ids,
+        counted => {
+            return counted_atlases(counted.count(aligned.meshes.len()), asmg, aligned, input);
+        }
     };
-    match &choice {
-        AtlasesChoice::Auto(_) | AtlasesChoice::Count(1) => Ok(vec![starting_atlas(
+    if input.template_indices.len() != ids.len() {
+        return Err(ModelError::invalid(
+            "atlases",
+            "every mesh named in atlases must be a training mesh",
+        ));
+    }
+    input
+        .template_indices
+        .iter()
+        .map(|&i| {
+            let mesh = aligned.meshes.get(i).cloned().ok_or_else(|| {
+                ModelError::invalid("atlases", "names a mesh that is not a training mesh")
+            })?;
+            initial_atlas(&asmg::AtlasInit::Given(mesh), &aligned.meshes)
+        })
+        .collect()
+}
+
+/// `m` initial atlases: ASMG's starting atlas for one, else the medoids of the meshes.
+fn counted_atlases(
+    m: usize,
+    asmg: &AsmgParams,
+    aligned: &Aligned,
+    input: &FitInput<'_>,
+) -> Result<Vec<Mesh>, ModelError> {
+    if m == 1 {
+        return Ok(vec![starting_atlas(
             asmg,
             &aligned.meshes,
             input.template_index(),
-        )?]),
-        AtlasesChoice::Count(m) => {
-            if *m > aligned.meshes.len() {
-                return Err(ModelError::invalid(
-                    "atlases",
-                    format!(
-                        "{m} atlases need at least {m} training meshes, got {}",
-                        aligned.meshes.len()
-                    ),
-                ));
-            }
-            let d = medoids::distance_matrix(&aligned.meshes)?;
-            let (chosen, _) = medoids::k_medoids(&d, *m)?;
-            chosen
-                .iter()
-                .map(|&i| simplified_atlas(&aligned.meshes[i], asmg))
-                .collect()
-        }
-        AtlasesChoice::Meshes(ids) => {
-            if input.template_indices.len() != ids.len() {
-                return Err(ModelError::invalid(
-                    "atlases",
-                    "every mesh named in atlases must be a training mesh",
-                ));
-            }
-            input
-                .template_indices
-                .iter()
-                .map(|&i| {
-                    let mesh = aligned.meshes.get(i).cloned().ok_or_else(|| {
-                        ModelError::invalid("atlases", "names a mesh that is not a training mesh")
-                    })?;
-                    initial_atlas(&asmg::AtlasInit::Given(mesh), &aligned.meshes)
-                })
-                .collect()
-        }
+        )?]);
     }
+    if m > aligned.meshes.len() {
+        return Err(ModelError::invalid(
+            "atlases",
+            format!(
+                "{m} atlases need at least {m} training meshes, got {}",
+                aligned.meshes.len()
+            ),
+        ));
+    }
+    let d = medoids::distance_matrix(&aligned.meshes)?;
+    let (chosen, _) = medoids::k_medoids(&d, m)?;
+    chosen
+        .iter()
+        .map(|&i| simplified_atlas(&aligned.meshes[i], asmg))
+        .collect()
 }
 
 /// Learns the atlases from `initial` with Ψ = `graph` (Algorithm 1; ASMG's loop for one).

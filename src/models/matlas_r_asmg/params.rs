@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::models::ModelError;
 use crate::models::atlas_r_asmg::AtlasRAsmgParams;
-use crate::models::clusters::MESHES_PER_GENERATOR;
+use crate::models::clusters::supported_atlases;
 
 /// Most atlases `"auto"` chooses (thesis §5.4 uses three for the liver).
 pub const DEFAULT_ATLASES: usize = 3;
@@ -30,8 +30,8 @@ pub enum AtlasesChoice {
     Count(usize),
     /// The given training meshes (mesh ids), one atlas each, in order.
     Meshes(Vec<String>),
-    /// [`DEFAULT_ATLASES`] atlases, fewer when the population is small: one per
-    /// [`MESHES_PER_GENERATOR`] training meshes, at least one (the default).
+    /// [`DEFAULT_ATLASES`] atlases, fewer when the population is small: as many as
+    /// [`supported_atlases`] (the default).
     Auto(Auto),
 }
 
@@ -61,11 +61,11 @@ impl AtlasesChoice {
 }
 
 /// The atlases `"auto"` fits on `training_meshes` meshes: [`DEFAULT_ATLASES`], fewer so that
-/// each generator learns from about [`MESHES_PER_GENERATOR`] meshes or more, at least one.
+/// each generator learns from about ten meshes or more ([`supported_atlases`]), at least one.
 /// On 8 LV phantoms three generators made 46% of their members near copies of a training
 /// shape, two 37%, one 2%.
 pub fn auto_count(training_meshes: usize) -> usize {
-    (training_meshes / MESHES_PER_GENERATOR).clamp(1, DEFAULT_ATLASES)
+    supported_atlases(training_meshes).min(DEFAULT_ATLASES)
 }
 
 /// Parameters of an mAtlas-R-ASMG fit, written as one flat object.
