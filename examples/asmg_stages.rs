@@ -111,6 +111,15 @@ fn train_psi(samples: &[GraphSample], params: &AsmgParams, seed: u64) -> Trained
     trained
 }
 
+/// Least-squares slope of `v` on `x`: 1 when the shapes' volumes follow the meshes', 0 when
+/// they all keep the atlas's.
+fn slope(v: &[f64], x: &[f64]) -> f64 {
+    let (mv, mx) = (mean(v.iter().copied()), mean(x.iter().copied()));
+    let cov: f64 = v.iter().zip(x).map(|(a, b)| (a - mv) * (b - mx)).sum();
+    let var: f64 = x.iter().map(|b| (b - mx).powi(2)).sum();
+    cov / var.max(f64::MIN_POSITIVE)
+}
+
 /// Volumes of h and h', coverage and matching distances of every shape for one temperature.
 fn report_temperature(
     label: &str,
@@ -143,11 +152,14 @@ fn report_temperature(
         hd.push(d.hd);
         lambda.push(c.lambda);
     }
+    let mesh_volumes: Vec<f64> = meshes.iter().map(volume_ml).collect();
     println!(
-        "| {label} | {:.0} | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} |",
+        "| {label} | {:.0} | {:.1} ({:.2}) | {:.1} ({:.2}) | {:.2} | {:.2} | {:.2} | {:.2} |",
         mean(lambda),
-        mean(vh),
-        mean(vs),
+        mean(vh.iter().copied()),
+        slope(&vh, &mesh_volumes),
+        mean(vs.iter().copied()),
+        slope(&vs, &mesh_volumes),
         mean(cover),
         mean(weight),
         mean(hd),
@@ -273,7 +285,7 @@ fn main() {
     let smoother = Smoother::new(&atlas, params.smoothing()).expect("smoother");
     println!("initial atlas: {:.1} ml\n", volume_ml(&atlas));
     println!(
-        "| temperature | λ | vol h ml | vol h' ml | coverage | match weight | HD h'–X | CD h'–X |"
+        "| temperature | λ | vol h ml (slope on the meshes') | vol h' ml (slope) | coverage | match weight | HD h'–X | CD h'–X |"
     );
     println!("|---|---|---|---|---|---|---|---|");
     let temperatures = [
@@ -281,6 +293,10 @@ fn main() {
         (
             "1/var ×30",
             Temperature::InverseVariance { multiplier: 30.0 },
+        ),
+        (
+            "1/var ×120",
+            Temperature::InverseVariance { multiplier: 120.0 },
         ),
         (
             "1/var ×300",
@@ -341,7 +357,12 @@ fn main() {
     };
     let h_volumes: Vec<f64> = learned.smoothed.iter().map(|h| volume_of(h)).collect();
     let (hm, hs) = spread(&h_volumes);
-    println!("h' volumes {hm:.1} ± {hs:.1} ml");
+    let mesh_volumes: Vec<f64> = meshes.iter().map(volume_ml).collect();
+    let (mm, ms) = spread(&mesh_volumes);
+    println!(
+        "h' volumes {hm:.1} ± {hs:.1} ml (meshes {mm:.1} ± {ms:.1} ml; slope on the meshes' {:.2})",
+        slope(&h_volumes, &mesh_volumes)
+    );
     let betas: Vec<f64> = std::env::var("BETAS")
         .ok()
         .map(|b| b.split(',').filter_map(|x| x.parse().ok()).collect())

@@ -11,6 +11,7 @@ use super::model::{
 };
 use super::monitor::StageMonitor;
 use super::params::{AsmgParams, AtlasChoice};
+use crate::geometry::cpd::NonRigidParams;
 use crate::mesh::Mesh;
 use crate::models::alignment::median_resolution_index;
 use crate::models::progress::{Progress, Stages};
@@ -342,6 +343,7 @@ pub(crate) fn train_generator(
     );
     model.latent_prior = Some(latent_prior);
     model.procrustes_mean = procrustes_mean;
+    model.nonrigid = params.nonrigid.then(NonRigidParams::default);
     if params.calibrate_spread {
         model.calibrate_spread(&shapes, data.weights, seed)?;
     }
@@ -386,6 +388,23 @@ pub(crate) fn train_generator_and_build(
     })
 }
 
+/// The normalised shapes deformed onto their meshes when `nonrigid` is on (else as given).
+pub(crate) fn refined(
+    params: &AsmgParams,
+    shapes: Vec<Vec<[f64; 3]>>,
+    aligned: &Aligned,
+) -> Result<Vec<Vec<[f64; 3]>>, ModelError> {
+    if !params.nonrigid {
+        return Ok(shapes);
+    }
+    let meshes: Vec<&[[f64; 3]]> = aligned
+        .meshes
+        .iter()
+        .map(|m| m.vertices.as_slice())
+        .collect();
+    super::nonrigid::refine_all(&shapes, &meshes, &NonRigidParams::default())
+}
+
 /// Fits ASMG up to its evaluation.
 pub(crate) fn fit(
     params: &AsmgParams,
@@ -407,10 +426,11 @@ pub(crate) fn fit(
         network: "graph_vae".to_owned(),
         per_epoch: graph_losses,
     }];
+    let smoothed = refined(params, learned.smoothed, &aligned)?;
     let learned = Correspondences {
         graph,
         atlas: learned.atlas,
-        smoothed: learned.smoothed,
+        smoothed,
         aligned,
         losses,
     };

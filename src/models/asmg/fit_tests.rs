@@ -55,6 +55,7 @@ fn fit_samples_reconstructs_and_round_trips() {
     let (training, holdout) = meshes.split_at(6);
     let params = AsmgParams {
         procrustes: true,
+        nonrigid: true,
         ..quick()
     };
     let outcome = fit(training, holdout, &params, None, 4, &mut Silent).unwrap();
@@ -131,6 +132,23 @@ fn fit_samples_reconstructs_and_round_trips() {
             assert!((a[d] - b[d]).abs() < 0.01, "{a:?} vs {b:?}");
         }
     }
+    // With `nonrigid` a new mesh's normalised shape is deformed onto it: nearer to the mesh
+    // than the attention's own, which a model stored before the refinement keeps.
+    assert!(back_model.nonrigid.is_some());
+    let mut stored = serde_json::to_value(back_model).unwrap();
+    stored.as_object_mut().unwrap().remove("nonrigid");
+    let unrefined: AsmgModel = serde_json::from_value(stored).unwrap();
+    let attention_only = unrefined.reconstruct(&holdout[0]).unwrap().normalised;
+    let index = crate::geometry::PointCloudIndex::new(&r.aligned_input).unwrap();
+    let gap = |shape: &[[f64; 3]]| {
+        shape.iter().map(|p| index.nearest(*p).1).sum::<f64>() / shape.len() as f64
+    };
+    let (refined_gap, attention_gap) = (gap(&r.normalised), gap(&attention_only));
+    assert!(
+        refined_gap < attention_gap,
+        "{refined_gap} vs {attention_gap} mm"
+    );
+
     // A model stored before Procrustes existed encodes shapes as they come, as it did.
     let mut stored = serde_json::to_value(back_model).unwrap();
     stored.as_object_mut().unwrap().remove("procrustes_mean");

@@ -27,6 +27,7 @@ pub mod learn;
 pub mod model;
 mod monitor;
 pub mod multi_atlas;
+pub mod nonrigid;
 mod parallel;
 pub mod params;
 mod pose;

@@ -17,8 +17,10 @@ use serde::{Deserialize, Serialize};
 use super::calibration::SpreadCalibration;
 use super::embeddings::Embeddings;
 use super::learn::{ShapeInput, normalise_shapes};
+use super::nonrigid::refine_normalised;
 use super::params::AsmgParams;
 use super::smoothing::Smoother;
+use crate::geometry::cpd::NonRigidParams;
 use crate::geometry::pca::Sampling;
 use crate::mesh::Mesh;
 use crate::mesh::simplify::simplify;
@@ -126,6 +128,10 @@ pub struct AsmgModel {
     /// `procrustes`; absent in models stored before it: shapes enter as normalised).
     #[serde(default)]
     pub procrustes_mean: Option<Vec<[f64; 3]>>,
+    /// The non-rigid refinement every normalised shape gets (fitted with `nonrigid`; absent
+    /// in models stored before it: shapes as the attention gives them).
+    #[serde(default)]
+    pub nonrigid: Option<NonRigidParams>,
     /// The networks once built (boxed: they are large and most copies of a model never
     /// build them).
     #[serde(skip)]
@@ -220,6 +226,7 @@ impl AsmgModel {
             latent_prior: None,
             spread_calibration: None,
             procrustes_mean: None,
+            nonrigid: None,
             networks: OnceLock::new(),
         };
         if let Some(n) = networks {
@@ -279,9 +286,14 @@ impl AsmgModel {
             self.params.temperature(),
             &nets.smoother,
         )?;
-        out.smoothed
+        let smoothed = out
+            .smoothed
             .pop()
-            .ok_or_else(|| ModelError::Numerical("no normalised shape".to_owned()))
+            .ok_or_else(|| ModelError::Numerical("no normalised shape".to_owned()))?;
+        match &self.nonrigid {
+            Some(params) => refine_normalised(&smoothed, &aligned.vertices, params),
+            None => Ok(smoothed),
+        }
     }
 
     /// A mesh with the atlas connectivity from flattened coordinates (mm).

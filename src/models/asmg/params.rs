@@ -162,6 +162,12 @@ pub struct AsmgParams {
     /// to 1.92 mm, but narrowed the cohort's volume sd from 0.875 to 0.840 of the training
     /// meshes'.
     pub procrustes: bool,
+    /// Deform each normalised shape onto its mesh with non-rigid CPD after the attention
+    /// (see [`super::nonrigid`]); a new mesh's normalised shape is refined the same way before
+    /// it is encoded. Off by default: on 100 LV phantoms (seed 1) it cut matching HD from 6.85
+    /// to 4.06 mm and specificity HD from 8.18 to 6.70 mm, but the cohort's volume sd fell from
+    /// 0.875 to 0.762 of the training meshes' (seed 3: 0.685 to 0.791).
+    pub nonrigid: bool,
 }
 
 impl Default for AsmgParams {
@@ -190,6 +196,7 @@ impl Default for AsmgParams {
             cpd_max_iterations: DEFAULT_CPD_MAX_ITERATIONS,
             calibrate_spread: true,
             procrustes: false,
+            nonrigid: false,
         }
     }
 }

@@ -134,12 +134,16 @@ fn fit(
             atlas: refined.atlases.into_iter().next().ok_or_else(|| {
                 ModelError::Numerical("the refinement returned no atlas".to_owned())
             })?,
-            smoothed: refined
-                .memberships
-                .smoothed
-                .into_iter()
-                .next()
-                .unwrap_or_default(),
+            smoothed: asmg::fit::refined(
+                asmg,
+                refined
+                    .memberships
+                    .smoothed
+                    .into_iter()
+                    .next()
+                    .unwrap_or_default(),
+                &aligned,
+            )?,
             aligned,
             losses,
         };

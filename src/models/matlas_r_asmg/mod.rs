@@ -288,7 +288,12 @@ fn fit(
 
     stages.enter("generator");
     let count = refined.atlases.len();
-    let memberships = refined.memberships;
+    let mut memberships = refined.memberships;
+    memberships.smoothed = memberships
+        .smoothed
+        .into_iter()
+        .map(|shapes| asmg::fit::refined(asmg, shapes, &aligned))
+        .collect::<Result<_, _>>()?;
     let (parts, curves) = train_generators(
         &refined.graph,
         &aligned,
