@@ -11,7 +11,6 @@ use super::model::{
 };
 use super::monitor::StageMonitor;
 use super::params::{AsmgParams, AtlasChoice};
-use crate::geometry::cpd::NonRigidParams;
 use crate::mesh::Mesh;
 use crate::models::alignment::median_resolution_index;
 use crate::models::progress::{Progress, Stages};
@@ -343,7 +342,7 @@ pub(crate) fn train_generator(
     );
     model.latent_prior = Some(latent_prior);
     model.procrustes_mean = procrustes_mean;
-    model.nonrigid = params.nonrigid.then(NonRigidParams::default);
+    model.nonrigid = params.nonrigid_refinement();
     if params.calibrate_spread {
         model.calibrate_spread(&shapes, data.weights, seed)?;
     }
@@ -394,15 +393,15 @@ pub(crate) fn refined(
     shapes: Vec<Vec<[f64; 3]>>,
     aligned: &Aligned,
 ) -> Result<Vec<Vec<[f64; 3]>>, ModelError> {
-    if !params.nonrigid {
+    let Some(refinement) = params.nonrigid_refinement() else {
         return Ok(shapes);
-    }
+    };
     let meshes: Vec<&[[f64; 3]]> = aligned
         .meshes
         .iter()
         .map(|m| m.vertices.as_slice())
         .collect();
-    super::nonrigid::refine_all(&shapes, &meshes, &NonRigidParams::default())
+    super::nonrigid::refine_all(&shapes, &meshes, &refinement)
 }
 
 /// Fits ASMG up to its evaluation.

@@ -8,6 +8,7 @@ use super::attention::{DEFAULT_VARIANCE_MULTIPLIER, Temperature};
 use super::init::DEFAULT_ATLAS_VERTICES;
 use super::learn::{AtlasLoopParams, DEFAULT_MAX_STEPS, DEFAULT_TOLERANCE_MM};
 use super::smoothing::{DEFAULT_GAMMA, Smoothing, SmoothingMethod, SmoothingParams};
+use crate::geometry::cpd::NonRigidParams;
 use crate::mesh::simplify::MIN_TARGET_VERTICES;
 use crate::models::ModelError;
 use crate::models::alignment::AlignmentParams;
@@ -351,6 +352,11 @@ impl AsmgParams {
             tolerance_mm: self.tolerance,
             max_steps: self.max_em_steps,
         }
+    }
+
+    /// The non-rigid refinement of normalised shapes this fit asks for (`None`: off).
+    pub fn nonrigid_refinement(&self) -> Option<NonRigidParams> {
+        self.nonrigid.then(NonRigidParams::default)
     }
 
     /// Settings of the rigid pre-alignment.
