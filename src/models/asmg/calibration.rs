@@ -2,8 +2,13 @@
 //! was trained on (the decoder averages what the latent code does not pin down), so its
 //! cohorts would be too narrow. After training, a seeded batch of drawn shapes is compared
 //! with the training shapes along the training population's principal modes; every drawn
-//! shape is then moved so that, along each of those modes, the draws have the training
-//! shapes' mean and standard deviation. What lies outside the modes is left as drawn.
+//! shape is then moved by one linear map of its coordinates on those modes so that the draws
+//! have the training shapes' mean and covariance there (the optimal-transport map between
+//! the two Gaussians). Matching each mode's sd alone is not enough: a generator's draws are
+//! correlated across the modes, and a biomarker such as volume, which moves along several of
+//! them, then varies less than in the training shapes even when every mode's sd is right.
+//! What lies outside the modes is left as drawn, or pulled in when it varies more there than
+//! the training shapes do.
 //!
 //! Shapes are flattened atlas-domain vertex positions `[3·N_μ]` in mm.
 
@@ -42,6 +47,12 @@ pub struct SpreadCalibration {
     /// no more than the training shapes do (1 in models stored before it existed).
     #[serde(default = "unit_gain")]
     pub residual_gain: f32,
+    /// Map `[K][K]` (row-major rows) from a drawn shape's coordinates on the modes, less
+    /// `drawn_mean`, to its calibrated coordinates: the draws then have the training shapes'
+    /// covariance on the modes. Symmetric, eigenvalues within `[1/MAX_GAIN, MAX_GAIN]`.
+    /// `None` in models stored before it existed, which scale each mode by `gain`.
+    #[serde(default)]
+    pub transform: Option<Vec<Vec<f32>>>,
 }
 
 fn unit_gain() -> f32 {
@@ -87,12 +98,22 @@ impl SpreadCalibration {
             drawn_mean: Vec::with_capacity(modes.len()),
             gain: Vec::with_capacity(modes.len()),
             residual_gain: 1.0,
+            transform: None,
         };
+        // Centred coordinates of the draws on the modes, `[draws][K]`.
+        let mut coords: Vec<Vec<f64>> = drawn
+            .iter()
+            .map(|d| {
+                (0..modes.len())
+                    .map(|k| calibration.coordinate(d, k))
+                    .collect()
+            })
+            .collect();
+        let n = coords.len() as f64;
         for (k, variance) in variances.iter().enumerate() {
-            let coords: Vec<f64> = drawn.iter().map(|d| calibration.coordinate(d, k)).collect();
-            let n = coords.len() as f64;
-            let centre = coords.iter().sum::<f64>() / n;
-            let sd = (coords.iter().map(|c| (c - centre).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+            let centre = coords.iter().map(|c| c[k]).sum::<f64>() / n;
+            coords.iter_mut().for_each(|c| c[k] -= centre);
+            let sd = (coords.iter().map(|c| c[k] * c[k]).sum::<f64>() / (n - 1.0)).sqrt();
             let gain = if sd > 0.0 {
                 variance.sqrt() / sd
             } else {
@@ -103,6 +124,12 @@ impl SpreadCalibration {
                 .gain
                 .push(gain.clamp(1.0 / MAX_GAIN, MAX_GAIN) as f32);
         }
+        let transform = covariance_map(&coords, &variances);
+        calibration.transform = Some(
+            (0..transform.nrows())
+                .map(|r| transform.row(r).iter().map(|&v| v as f32).collect())
+                .collect(),
+        );
         let drawn_residual = drawn
             .iter()
             .map(|d| calibration.residual(d).iter().map(|r| r * r).sum::<f64>())
@@ -139,20 +166,34 @@ impl SpreadCalibration {
         r
     }
 
-    /// Moves a drawn shape so that its coordinate `c` along each mode becomes
-    /// `(c − drawn mean) · gain` and what it has off the modes is scaled by the residual
-    /// gain; a shape of another width is left alone.
+    /// Moves a drawn shape so that its coordinates `c` on the modes become
+    /// `transform · (c − drawn mean)` (`gain` per mode in models without a transform) and
+    /// what it has off the modes is scaled by the residual gain; a shape of another width is
+    /// left alone.
     pub fn apply(&self, shape: &mut [f32]) {
         if shape.len() != self.mean.len() {
             return;
         }
         let residual = self.residual(shape);
-        let coords: Vec<f64> = (0..self.modes.len())
-            .map(|k| {
-                (self.coordinate(shape, k) - f64::from(self.drawn_mean[k]))
-                    * f64::from(self.gain[k])
-            })
+        let centred: Vec<f64> = (0..self.modes.len())
+            .map(|k| self.coordinate(shape, k) - f64::from(self.drawn_mean[k]))
             .collect();
+        let coords: Vec<f64> = match &self.transform {
+            Some(map) => map
+                .iter()
+                .map(|row| {
+                    row.iter()
+                        .zip(&centred)
+                        .map(|(a, c)| f64::from(*a) * c)
+                        .sum()
+                })
+                .collect(),
+            None => centred
+                .iter()
+                .zip(&self.gain)
+                .map(|(c, g)| c * f64::from(*g))
+                .collect(),
+        };
         let residual_gain = f64::from(self.residual_gain);
         for (j, x) in shape.iter_mut().enumerate() {
             let on_modes: f64 = coords
@@ -187,6 +228,34 @@ impl AsmgModel {
         self.spread_calibration = SpreadCalibration::fit(training, weights, &drawn);
         Ok(())
     }
+}
+
+/// The symmetric map `A` `[K][K]` that gives centred draw coordinates `[draws][K]` the
+/// covariance `diag(variances)`: `A = S^-½ (S^½ T S^½)^½ S^-½` with `S` the draws' covariance
+/// and `T` the training one (the optimal-transport map between the two Gaussians), its
+/// eigenvalues then bounded by [`MAX_GAIN`] like the per-mode gains.
+fn covariance_map(coords: &[Vec<f64>], variances: &[f64]) -> DMatrix<f64> {
+    let k = variances.len();
+    let n = coords.len() as f64;
+    let drawn = DMatrix::from_fn(k, k, |a, b| {
+        coords.iter().map(|c| c[a] * c[b]).sum::<f64>() / (n - 1.0)
+    });
+    // A direction the draws do not vary in at all gets the largest gain.
+    let floor = variances.iter().copied().fold(0.0, f64::max) * 1e-12;
+    let root = |m: DMatrix<f64>, power: f64| -> DMatrix<f64> {
+        let e = SymmetricEigen::new(m);
+        let d = e.eigenvalues.map(|v| v.max(floor).powf(power));
+        &e.eigenvectors * DMatrix::from_diagonal(&d) * e.eigenvectors.transpose()
+    };
+    let drawn_root = root(drawn.clone(), 0.5);
+    let drawn_inverse_root = root(drawn, -0.5);
+    let target = DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(variances));
+    let middle = root(&drawn_root * target * &drawn_root, 0.5);
+    let map = &drawn_inverse_root * middle * &drawn_inverse_root;
+    let map = (&map + map.transpose()) * 0.5;
+    let e = SymmetricEigen::new(map);
+    let bounded = e.eigenvalues.map(|v| v.clamp(1.0 / MAX_GAIN, MAX_GAIN));
+    &e.eigenvectors * DMatrix::from_diagonal(&bounded) * e.eigenvectors.transpose()
 }
 
 /// Unit principal directions `[K][dim]` of the weighted training shapes, their variances,
@@ -246,85 +315,5 @@ fn principal_modes(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn sd(values: &[f64]) -> (f64, f64) {
-        let n = values.len() as f64;
-        let mean = values.iter().sum::<f64>() / n;
-        let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-        (mean, var.sqrt())
-    }
-
-    /// Points on a line through (10, 0) along x: training sd 2 mm, draws sd 1 mm around 11.
-    fn line(values: &[f64], offset: f64) -> Vec<Vec<f32>> {
-        values
-            .iter()
-            .map(|v| vec![(10.0 + offset + v) as f32, 0.0])
-            .collect()
-    }
-
-    #[test]
-    fn narrow_draws_get_the_training_mean_and_spread_along_its_mode() {
-        let training = line(&[-2.0, 2.0, -2.0, 2.0, 0.0, 0.0], 0.0);
-        let (_, train_sd) = sd(&training.iter().map(|x| f64::from(x[0])).collect::<Vec<_>>());
-        let drawn = line(&[-1.0, 1.0, -1.0, 1.0, 0.0, 0.0], 1.0);
-        let c = SpreadCalibration::fit(&training, None, &drawn).unwrap();
-        assert_eq!(c.mode_count(), 1);
-        let calibrated: Vec<f64> = drawn
-            .iter()
-            .map(|d| {
-                let mut d = d.clone();
-                c.apply(&mut d);
-                assert!(d[1].abs() < 1e-5, "nothing moves off the mode");
-                f64::from(d[0])
-            })
-            .collect();
-        let (mean, spread) = sd(&calibrated);
-        assert!((mean - 10.0).abs() < 1e-4, "mean {mean}");
-        assert!(
-            (spread - train_sd).abs() < 1e-4,
-            "sd {spread} vs {train_sd}"
-        );
-    }
-
-    #[test]
-    fn what_lies_off_the_modes_is_left_as_drawn() {
-        let training = line(&[-2.0, 2.0, -1.0, 1.0], 0.0);
-        let drawn = line(&[-1.0, 1.0, 0.0], 0.0);
-        let c = SpreadCalibration::fit(&training, None, &drawn).unwrap();
-        let mut off = vec![10.0f32, 3.0];
-        c.apply(&mut off);
-        assert!((off[1] - 3.0).abs() < 1e-6);
-        // Draws that vary off the modes more than the training shapes are pulled in: the
-        // training shapes vary only along x.
-        let noisy: Vec<Vec<f32>> = [(-1.0, 1.0), (1.0, -1.0), (0.0, 0.0), (0.5, 2.0)]
-            .iter()
-            .map(|(x, y)| vec![10.0 + x, *y])
-            .collect();
-        let c = SpreadCalibration::fit(&training, None, &noisy).unwrap();
-        assert!(c.residual_gain < 1e-3, "{}", c.residual_gain);
-        let mut shape = noisy[3].clone();
-        c.apply(&mut shape);
-        assert!(shape[1].abs() < 1e-2, "{shape:?}");
-        // A shape of another width is not touched.
-        let mut other = vec![1.0f32; 3];
-        c.apply(&mut other);
-        assert_eq!(other, vec![1.0; 3]);
-    }
-
-    #[test]
-    fn weights_choose_whose_spread_is_matched_and_gains_are_bounded() {
-        // Heavy weights on the two outer shapes: a wider weighted spread than equal weights.
-        let training = line(&[-3.0, 3.0, -0.5, 0.5], 0.0);
-        let drawn = line(&[-1.0, 1.0, 0.0], 0.0);
-        let equal = SpreadCalibration::fit(&training, None, &drawn).unwrap();
-        let outer =
-            SpreadCalibration::fit(&training, Some(&[1.0, 1.0, 0.01, 0.01]), &drawn).unwrap();
-        assert!(outer.gain[0] > equal.gain[0]);
-        let still = line(&[0.0, 0.0, 0.0], 0.0);
-        let flat = SpreadCalibration::fit(&training, None, &still).unwrap();
-        assert_eq!(flat.gain[0], MAX_GAIN as f32);
-        assert!(SpreadCalibration::fit(&training[..2], None, &drawn).is_none());
-    }
-}
+#[path = "calibration_tests.rs"]
+mod tests;

@@ -150,7 +150,7 @@ pub struct AsmgParams {
     pub multistart: bool,
     /// Most CPD iterations of the pre-alignment.
     pub cpd_max_iterations: usize,
-    /// Give drawn shapes the training shapes' mean and spread along the principal modes of
+    /// Give drawn shapes the training shapes' mean and covariance on the principal modes of
     /// the training population's normalised shapes (a generator's draws vary less than its
     /// training shapes: without it, and with `variance_multiplier` 30 and `gamma` 1, cohorts
     /// of 100 LV phantoms had half the training meshes' volume sd).
