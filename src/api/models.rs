@@ -112,9 +112,11 @@ pub struct ClusterAtlasView {
     pub euler_characteristic: Option<i64>,
     /// Probability that a draw comes from this cluster.
     pub prior: f64,
-    /// Training meshes' worth of weight its generator learned from, `(Σ_k w_km)² / Σ_k w_km²`
-    /// (its member count when every weight is 0 or 1). Below 10 the generator mostly
-    /// reproduces its meshes.
+    /// Effective number of training meshes its generator learned from (Kish's effective
+    /// sample size of its weights, `(Σ_k w_km)² / Σ_k w_km²`; its member count when every
+    /// weight is 0 or 1). A mesh weighted into several clusters counts in each, so the
+    /// clusters' figures can add up to more than the training meshes. Below 10 the generator
+    /// mostly reproduces its meshes.
     pub effective_meshes: f64,
 }
 

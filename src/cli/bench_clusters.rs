@@ -18,7 +18,7 @@ pub struct ClusterBench {
     pub sizes: Vec<usize>,
     /// `π_m`.
     pub priors: Vec<f64>,
-    /// Training meshes' worth of weight each cluster's generator learned from.
+    /// Effective training meshes (Kish) each cluster's generator learned from.
     pub effective_meshes: Vec<f64>,
     /// Adjusted Rand index of the winning clusters against the labels (labelled families).
     pub adjusted_rand_index: Option<f64>,
@@ -133,7 +133,7 @@ pub fn cluster_markdown(model: &str, c: &ClusterBench) -> String {
         .map(|e| format!("{e:.1}"))
         .collect();
     let mut out = format!(
-        "- **{model}**: training phantoms per cluster {} (meshes' worth of weight {}); priors π {}",
+        "- **{model}**: training phantoms per cluster {} (effective training meshes, Kish: {}); priors π {}",
         list(&c.sizes),
         effective.join(" / "),
         priors.join(" / ")

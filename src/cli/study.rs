@@ -228,7 +228,7 @@ fn clusters_markdown(
         .map(|e| format!("{e:.1}"))
         .collect();
     let mut out = format!(
-        "Clusters (priors {}; training meshes' worth of weight {}):\n\n",
+        "Clusters (priors {}; effective training meshes, Kish {}):\n\n",
         priors.join(" / "),
         effective.join(" / ")
     );

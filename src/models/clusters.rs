@@ -1,6 +1,6 @@
 //! The per-cluster breakdown of a cohort: how many members each atlas (cluster) produced,
 //! how they fare against the training population, and their biomarker statistics; and how
-//! many training meshes' worth of weight each cluster's generator learns from.
+//! many training meshes, effectively, each cluster's generator learns from.
 
 use std::collections::BTreeMap;
 
@@ -73,7 +73,7 @@ pub fn winning_cluster(weights: &[f64]) -> usize {
         .0
 }
 
-/// Training meshes' worth of weight a cluster's generator needs for its draws to vary rather
+/// Effective training meshes a cluster's generator needs for its draws to vary rather
 /// than repeat its meshes. On 8 LV phantoms (seed 1), generators of about 3, 4 and 8 meshes
 /// made 46%, 37% and 2% of their members near copies of a training shape.
 pub const MESHES_PER_GENERATOR: usize = 10;
@@ -87,7 +87,9 @@ pub fn supported_atlases(training_meshes: usize) -> usize {
 impl ClusterSummary {
     /// How many training meshes each cluster's generator learns from: Kish's effective
     /// sample size of its weights, `(Σ_k w_km)² / Σ_k w_km²` (its member count when the
-    /// weights are 0 or 1).
+    /// weights are 0 or 1). A mesh with weight in several clusters counts in each: with
+    /// even weights every cluster learns from all the meshes, so the sizes need not add up
+    /// to the training count.
     pub fn effective_meshes(&self) -> Vec<f64> {
         (0..self.priors.len())
             .map(|m| {
@@ -106,7 +108,7 @@ impl ClusterSummary {
     }
 
     /// A warning when a cluster's generator learns from fewer than
-    /// [`MESHES_PER_GENERATOR`] meshes' worth of weight (none otherwise).
+    /// [`MESHES_PER_GENERATOR`] effective meshes (none otherwise).
     pub fn thin_cluster_note(&self) -> Option<String> {
         let effective = self.effective_meshes();
         if effective.len() < 2 {
@@ -118,7 +120,7 @@ impl ClusterSummary {
             .filter(|(_, e)| **e < MESHES_PER_GENERATOR as f64)
             .enumerate()
             .map(|(k, (m, e))| match k {
-                0 => format!("cluster {m} learns from {e:.1} training meshes' worth of weight"),
+                0 => format!("cluster {m} learns from {e:.1} effective training meshes"),
                 _ => format!("cluster {m} from {e:.1}"),
             })
             .collect();
@@ -155,7 +157,7 @@ mod tests {
     fn hard_weights_count_members_and_soft_ones_less() {
         let hard = summary(vec![vec![1.0, 0.0], vec![1.0, 0.0], vec![0.0, 1.0]]);
         assert_eq!(hard.effective_meshes(), vec![2.0, 1.0]);
-        // Two meshes of weight 0.5 and one of 1.0: (2)² / 1.5 = 2.67 meshes' worth.
+        // Two meshes of weight 0.5 and one of 1.0: (2)² / 1.5 = 2.67 effective meshes.
         let soft = summary(vec![vec![0.5, 0.5], vec![0.5, 0.5], vec![1.0, 0.0]]);
         let e = soft.effective_meshes();
         assert!((e[0] - 4.0 / 1.5).abs() < 1e-12 && (e[1] - 2.0).abs() < 1e-12);
@@ -167,7 +169,7 @@ mod tests {
         let thin = summary(rows(8).collect()).thin_cluster_note().unwrap();
         assert!(
             thin.starts_with(
-                "cluster 0 learns from 4.0 training meshes' worth of weight, cluster 1 from 4.0 (fewer than 10):"
+                "cluster 0 learns from 4.0 effective training meshes, cluster 1 from 4.0 (fewer than 10):"
             ),
             "{thin}"
         );

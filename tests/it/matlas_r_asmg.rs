@@ -42,18 +42,15 @@ async fn mixed_phantoms_to_two_atlases_and_a_cohort_of_both() {
     assert!((prior_sum - 1.0).abs() < 1e-9);
     let assignments = clusters["assignments"].as_array().unwrap();
     assert_eq!(assignments.len(), 12, "every training and held-out mesh");
-    // Ten or so training meshes over two clusters: each generator learns from a few meshes'
-    // worth of weight, and the model says so.
+    // Ten or so training meshes over two clusters: each generator learns from a few
+    // effective training meshes, and the model says so.
     let training = model["training_count"].as_f64().unwrap();
     for a in atlases {
         let e = a["effective_meshes"].as_f64().unwrap();
         assert!(e >= 1.0 && e <= training, "{a}");
     }
     let note = clusters["note"].as_str().unwrap_or_default();
-    assert!(
-        note.contains("training meshes' worth of weight"),
-        "{clusters}"
-    );
+    assert!(note.contains("effective training meshes"), "{clusters}");
     for a in assignments {
         let w: Vec<f64> = serde_json::from_value(a["weights"].clone()).unwrap();
         assert_eq!(w.len(), 2);
