@@ -343,19 +343,24 @@ fn spread_table(report: &BenchReport) -> String {
         }),
     ));
     rows.push(row(
-        "held-out meshes through the model flagged as near copies, % (about 5% when calibrated)",
+        "held-out meshes through the model flagged as near copies (about 5% when calibrated)",
         models.iter().map(|m| {
             let h = &m.held_out_privacy;
             let share = |k: usize| 100.0 * k as f64 / h.meshes.max(1) as f64;
             let plain = if h.leave_one_out {
                 format!(
-                    " (plain threshold: {:.1})",
+                    "; plain threshold: {:.1}%",
                     share(h.flagged_by_nearest_training_shape)
                 )
             } else {
                 String::new()
             };
-            format!("{:.1} of {}{plain}", share(h.flagged), h.meshes)
+            format!(
+                "{:.1}% ({} of {}{plain})",
+                share(h.flagged),
+                h.flagged,
+                h.meshes
+            )
         }),
     ));
     rows.push(row(
