@@ -1,0 +1,229 @@
+//! Where a model's members leave the training population in biomarker space.
+//!
+//! `cargo run --release --example biomarker_stages -- [model] [meshes] [seed] [draws]`
+//! (defaults rsmp, 100, 1, 1000): fits the model to LV phantoms and compares the six
+//! biomarkers of the training shapes as the model reproduces them (what members are compared
+//! with for privacy) and of its draws with those of the training meshes: mean and sd ratios,
+//! joint A^μ, and the Mahalanobis distance of each shape's biomarkers from the training mean
+//! (which sees a combination no patient has, such as a long axis too long for the volume,
+//! where each biomarker alone is inside its interval).
+
+use cohortforge::eval::biomarkers::{Biomarkers, ExtentAxes};
+use cohortforge::eval::stats;
+use cohortforge::mesh::Mesh;
+use cohortforge::mesh::phantom::{self, Family};
+use cohortforge::models::asmg::calibration::MAX_GAIN;
+use cohortforge::models::asmg::model::AsmgModel;
+use cohortforge::models::progress::Silent;
+use cohortforge::models::{FitInput, ModelType};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+fn row(mesh: &Mesh) -> [f64; 6] {
+    let b = Biomarkers::measure(mesh, ExtentAxes::Surface).expect("biomarkers");
+    [
+        b.volume_ml.abs(),
+        b.area_cm2,
+        b.sphericity,
+        b.extent_major_mm,
+        b.extent_middle_mm,
+        b.extent_minor_mm,
+    ]
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let model = args.get(1).map(String::as_str).unwrap_or("rsmp");
+    let count: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(100);
+    let seed: u64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(1);
+    let draws: usize = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(1000);
+    let meshes: Vec<Mesh> = phantom::generate(Family::Lv, count, seed)
+        .into_iter()
+        .map(|p| p.mesh)
+        .collect();
+    let input = FitInput {
+        training: &meshes,
+        holdout: &[],
+        template_indices: &[],
+        seed,
+    };
+    let params = ModelType::parse_name(model)
+        .unwrap()
+        .parse_params(&serde_json::Value::Null)
+        .unwrap();
+    let outcome = params.fit(&input, &mut Silent).unwrap();
+    let stored = &outcome.model;
+    let faces = &stored.model.atlases()[0].faces;
+    let reproduced: Vec<Mesh> = stored.training.normalised_f64()[0]
+        .iter()
+        .map(|v| Mesh::new(v.clone(), faces.clone()))
+        .collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let drawn: Vec<Mesh> = (0..draws)
+        .map(|_| {
+            stored
+                .model
+                .sample(&mut rng, Default::default())
+                .unwrap()
+                .mesh
+        })
+        .collect();
+    let reference = Reference::new(&meshes.iter().map(row).collect::<Vec<_>>());
+    let mean_shape = Mesh::new(
+        (0..vertex_count(&reproduced))
+            .map(|i| {
+                let sum = reproduced.iter().fold([0.0; 3], |s, m| {
+                    [
+                        s[0] + m.vertices[i][0],
+                        s[1] + m.vertices[i][1],
+                        s[2] + m.vertices[i][2],
+                    ]
+                });
+                sum.map(|x| x / reproduced.len() as f64)
+            })
+            .collect(),
+        faces.clone(),
+    );
+    let (_, mean_axis) = major_axis(&mean_shape);
+    println!(
+        "{model}, {count} LV phantoms (seed {seed}); ratios to the training meshes for \
+         volume, area, sphericity, major, middle, minor extent; tilt: angle of a shape's long \
+         axis to that of the mean reproduced shape"
+    );
+    // The training meshes keep their own poses: no tilt for them.
+    reference.print("training meshes", &meshes, None);
+    reference.print("reproduced", &reproduced, Some(&mean_axis));
+    reference.print("draws", &drawn, Some(&mean_axis));
+    if let Some(asmg) = stored.model.as_any().downcast_ref::<AsmgModel>()
+        && let Some(c) = &asmg.spread_calibration
+    {
+        let eigenvalues: Vec<f64> = c.transform.as_ref().map_or_else(
+            || c.gain.iter().map(|g| f64::from(*g)).collect(),
+            |t| {
+                let k = t.len();
+                DMatrix::from_fn(k, k, |a, b| f64::from(t[a][b]))
+                    .symmetric_eigenvalues()
+                    .iter()
+                    .copied()
+                    .collect()
+            },
+        );
+        let (low, high) = eigenvalues
+            .iter()
+            .fold((f64::MAX, 0.0_f64), |(l, h), e| (l.min(*e), h.max(*e)));
+        let bounded = eigenvalues
+            .iter()
+            .filter(|e| **e >= MAX_GAIN * 0.999)
+            .count();
+        println!(
+            "spread calibration: {} modes, map eigenvalues {low:.2}-{high:.2} ({bounded} at \
+                 the bound {MAX_GAIN}), residual gain {:.2}",
+            c.mode_count(),
+            c.residual_gain
+        );
+    }
+}
+
+fn vertex_count(meshes: &[Mesh]) -> usize {
+    meshes.first().map_or(0, |m| m.vertices.len())
+}
+
+/// Centroid and unit long axis of a surface (eigenvector of the area-weighted covariance of
+/// its triangles with the largest eigenvalue), as the extents are measured.
+fn major_axis(mesh: &Mesh) -> (Vector3<f64>, Vector3<f64>) {
+    let v = |i: u32| Vector3::from(mesh.vertices[i as usize]);
+    let (mut area, mut centroid) = (0.0, Vector3::zeros());
+    for f in &mesh.faces {
+        let (a, b, c) = (v(f[0]), v(f[1]), v(f[2]));
+        let w = 0.5 * (b - a).cross(&(c - a)).norm();
+        area += w;
+        centroid += w * (a + b + c) / 3.0;
+    }
+    centroid /= area;
+    let mut covariance = Matrix3::zeros();
+    for f in &mesh.faces {
+        let (a, b, c) = (v(f[0]), v(f[1]), v(f[2]));
+        let w = 0.5 * (b - a).cross(&(c - a)).norm();
+        for p in [a, b, c] {
+            let d = p - centroid;
+            covariance += w * d * d.transpose();
+        }
+    }
+    let e = covariance.symmetric_eigen();
+    let k = e.eigenvalues.imax();
+    (centroid, e.eigenvectors.column(k).into_owned())
+}
+
+/// The training meshes' biomarker mean, sd and covariance.
+struct Reference {
+    mean: DVector<f64>,
+    sd: DVector<f64>,
+    precision: DMatrix<f64>,
+}
+
+impl Reference {
+    fn new(rows: &[[f64; 6]]) -> Self {
+        let n = rows.len() as f64;
+        let x = DMatrix::from_fn(rows.len(), 6, |i, j| rows[i][j]);
+        let mean = DVector::from_fn(6, |j, _| x.column(j).sum() / n);
+        let centred = DMatrix::from_fn(rows.len(), 6, |i, j| x[(i, j)] - mean[j]);
+        let covariance = centred.transpose() * &centred / (n - 1.0);
+        let sd = covariance.diagonal().map(f64::sqrt);
+        let precision = covariance.try_inverse().expect("invertible covariance");
+        Self {
+            mean,
+            sd,
+            precision,
+        }
+    }
+
+    /// Mahalanobis distance of a biomarker row from the training mean.
+    fn radius(&self, r: &[f64; 6]) -> f64 {
+        let d = DVector::from_fn(6, |j, _| r[j] - self.mean[j]);
+        (d.transpose() * &self.precision * &d)[(0, 0)].sqrt()
+    }
+
+    fn print(&self, stage: &str, shapes: &[Mesh], mean_axis: Option<&Vector3<f64>>) {
+        let rows: Vec<[f64; 6]> = shapes.iter().map(row).collect();
+        let n = rows.len() as f64;
+        let column = |j: usize| rows.iter().map(|r| r[j]).collect::<Vec<_>>();
+        let ratios = |f: &dyn Fn(&[f64]) -> f64, of: &DVector<f64>| -> String {
+            (0..6)
+                .map(|j| format!("{:.3}", f(&column(j)) / of[j]))
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        let inside = rows
+            .iter()
+            .filter(|r| (0..6).all(|j| (r[j] - self.mean[j]).abs() <= 2.0 * self.sd[j]))
+            .count() as f64;
+        let radii = stats::sorted(&rows.iter().map(|r| self.radius(r)).collect::<Vec<_>>());
+        let tilt = mean_axis.map_or_else(
+            || "-".to_owned(),
+            |axis| {
+                let tilts = stats::sorted(
+                    &shapes
+                        .iter()
+                        .map(|m| major_axis(m).1.dot(axis).abs().min(1.0).acos().to_degrees())
+                        .collect::<Vec<_>>(),
+                );
+                format!(
+                    "mean {:.1}, 90th {:.1} deg",
+                    stats::mean(&tilts),
+                    stats::quantile_sorted(&tilts, 0.9)
+                )
+            },
+        );
+        println!(
+            "{stage:15} n {:4}  joint A^mu {:5.1}%  mean {}  sd {}  radius mean {:.2}, 95th \
+             {:.2}  tilt {tilt}",
+            rows.len(),
+            100.0 * inside / n,
+            ratios(&stats::mean, &self.mean),
+            ratios(&stats::sample_sd, &self.sd),
+            stats::mean(&radii),
+            stats::quantile_sorted(&radii, 0.95),
+        );
+    }
+}
