@@ -9,8 +9,8 @@ use super::bench_clusters::ClusterBench;
 use super::bench_models::{BenchModel, ModelEntry, bench_models, parse_model_entry};
 use super::bench_privacy::held_out_privacy;
 use super::bench_report::{
-    BenchReport, CohortBench, ConditionalBench, FitBench, ModelBench, ReferenceFidelity,
-    RenderBench, SpecificityBench, VolumeFidelity, print_markdown,
+    BenchReport, BiomarkerDistance, CohortBench, ConditionalBench, FitBench, ModelBench,
+    ReferenceFidelity, RenderBench, SpecificityBench, VolumeFidelity, print_markdown,
 };
 use super::memory::{self, StepMemory};
 use super::progress::StderrProgress;
@@ -18,7 +18,9 @@ use super::{CliResult, write_json};
 use crate::eval::SummaryStats;
 use crate::eval::acceptance::joint_acceptance_rates;
 use crate::eval::fidelity::Fidelity;
-use crate::eval::gaussian_reference::{GAUSSIAN_REFERENCE_DRAWS, gaussian_joint_acceptance};
+use crate::eval::gaussian_reference::{
+    GAUSSIAN_REFERENCE_DRAWS, distance_quantile, gaussian_joint_acceptance,
+};
 use crate::geometry::pca::Sampling;
 use crate::jobs::fit::fit_model;
 use crate::mesh::measures::volume_ml;
@@ -291,6 +293,8 @@ fn bench_model(
             &data.fresh_biomarkers,
         )
     });
+    let member_columns =
+        crate::models::cohort::columns(&members.iter().map(|m| &m.biomarkers).collect::<Vec<_>>());
     drop(members);
     eprintln!(
         "{name}: {} held-out meshes against the near-copy threshold",
@@ -315,6 +319,14 @@ fn bench_model(
             args.seed,
         )
         .map_err(text)?,
+        distance: BiomarkerDistance {
+            cohort: distance_quantile(&outcome.reference.values, &member_columns, 0.95)
+                .map_err(text)?,
+            fresh: distance_quantile(&outcome.reference.values, &fresh_columns, 0.95)
+                .map_err(text)?,
+            training: distance_quantile(&outcome.reference.values, &outcome.reference.values, 0.95)
+                .map_err(text)?,
+        },
     };
     let cohort = CohortBench {
         size: args.cohort_size,

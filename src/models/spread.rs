@@ -6,10 +6,12 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use super::cohort::{CohortSpec, Criterion, TrainingIndex, sample_cohort};
+use super::cohort::{CohortSpec, Criterion, Member, TrainingIndex, columns, sample_cohort};
 use super::{ModelError, ReferencePopulation, ShapeModel, TrainingShapes};
 use crate::eval::fidelity::Spread;
-use crate::eval::gaussian_reference::{GAUSSIAN_REFERENCE_DRAWS, gaussian_joint_acceptance};
+use crate::eval::gaussian_reference::{
+    GAUSSIAN_REFERENCE_DRAWS, distance_quantile, gaussian_joint_acceptance,
+};
 use crate::geometry::pca::Sampling;
 
 /// Members of the cohort drawn to judge a fit's spread.
@@ -42,9 +44,26 @@ pub struct FidelitySummary {
     /// (populations with lighter tails than a Gaussian score higher themselves).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gaussian_joint_acceptance: Option<f64>,
+    /// How far the members' biomarkers lie from the training mean jointly, beside the
+    /// training meshes' own (absent for populations of fewer than 20 meshes, whose
+    /// covariance is too uncertain, and in summaries stored before it was kept).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub biomarker_distance: Option<JointDistance>,
     /// Said when the training population is too small for its estimates.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub population_note: Option<String>,
+}
+
+/// 95th percentiles of the Mahalanobis distance of the six biomarkers from the training
+/// mean, under the training covariance (unitless: training sds along each principal
+/// direction). Members whose biomarkers combine as no patient's do, such as a long axis too
+/// long for the volume, lie far out even when each biomarker is inside its interval.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct JointDistance {
+    /// The cohort's members.
+    pub members_p95: f64,
+    /// The training meshes themselves.
+    pub training_p95: f64,
 }
 
 impl FidelitySummary {
@@ -58,6 +77,18 @@ impl FidelitySummary {
              time, which is what a model with a Gaussian latent space can be expected to reach",
             100.0 * cohort,
             100.0 * gaussian
+        ))
+    }
+
+    /// The members' joint distance from the training mean beside the training meshes', in
+    /// words (absent when not computed).
+    pub fn distance_sentence(&self) -> Option<String> {
+        let d = self.biomarker_distance.as_ref()?;
+        Some(format!(
+            "One member in twenty lies farther than {:.1} from the training mean in all six \
+             biomarkers together (Mahalanobis distance, in training sds), where one training \
+             mesh in twenty lies beyond {:.1}",
+            d.members_p95, d.training_p95
         ))
     }
 }
@@ -81,7 +112,8 @@ pub fn fidelity_summary<M: ShapeModel + Sync + ?Sized>(
         exclude_near_copies: false,
         max_draws: 20 * FIDELITY_MEMBERS,
     };
-    let (_, report) = sample_cohort(model, reference, &index, &spec)?;
+    let (members, report) = sample_cohort(model, reference, &index, &spec)?;
+    let biomarker_distance = joint_distance(reference, &members);
     Ok(FidelitySummary {
         members: FIDELITY_MEMBERS,
         seed: spec.seed,
@@ -101,6 +133,108 @@ pub fn fidelity_summary<M: ShapeModel + Sync + ?Sized>(
         .ok()
         .map(|r| r.mean),
         implausible_replaced: report.implausible_replaced,
+        biomarker_distance,
         population_note: report.population_note,
     })
+}
+
+/// The members' and the training meshes' 95th-percentile distances from the training mean;
+/// `None` for a small population or one whose covariance has no inverse.
+fn joint_distance(reference: &ReferencePopulation, members: &[Member]) -> Option<JointDistance> {
+    if reference.is_small() {
+        return None;
+    }
+    let biomarkers: Vec<_> = members.iter().map(|m| &m.biomarkers).collect();
+    let quantile = |samples: &[Vec<f64>]| distance_quantile(&reference.values, samples, 0.95);
+    Some(JointDistance {
+        members_p95: quantile(&columns(&biomarkers)).ok()?,
+        training_p95: quantile(&reference.values).ok()?,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::Rng;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    use super::*;
+    use crate::mesh::Mesh;
+    use crate::mesh::phantom::{self, Family};
+    use crate::models::{Draw, Reconstruction};
+
+    /// Hands out training mesh `d mod n` on draw `d`, scaled by `.1` about the origin.
+    struct Cycler(Vec<Mesh>, f64);
+
+    impl ShapeModel for Cycler {
+        fn atlases(&self) -> &[Mesh] {
+            &self.0[..1]
+        }
+        fn sample(&self, rng: &mut ChaCha8Rng, _: Sampling) -> Result<Draw, ModelError> {
+            let mut mesh = self.0[rng.get_stream() as usize % self.0.len()].clone();
+            mesh.vertices
+                .iter_mut()
+                .for_each(|p| *p = p.map(|c| self.1 * c));
+            Ok(Draw { mesh, cluster: 0 })
+        }
+        fn reconstruct(&self, _: &Mesh) -> Result<Reconstruction, ModelError> {
+            unreachable!("not used by cohorts")
+        }
+    }
+
+    /// `count` copies of one LV phantom, each stretched along x, y and z by its own factor
+    /// in [0.85, 1.15]: corresponded shapes whose six biomarkers all vary.
+    fn stretched(count: usize) -> Vec<Mesh> {
+        let mesh = phantom::subject(Family::Lv, 4, 0).canonical_mesh();
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        (0..count)
+            .map(|_| {
+                let k: [f64; 3] = std::array::from_fn(|_| rng.random_range(0.85..1.15));
+                let mut m = mesh.clone();
+                m.vertices
+                    .iter_mut()
+                    .for_each(|p| *p = [k[0] * p[0], k[1] * p[1], k[2] * p[2]]);
+                m
+            })
+            .collect()
+    }
+
+    fn summary(meshes: &[Mesh], scale: f64) -> FidelitySummary {
+        let shapes: Vec<Vec<[f64; 3]>> = meshes.iter().map(|m| m.vertices.clone()).collect();
+        let training = TrainingShapes::new(&shapes, std::slice::from_ref(&shapes), 0.05).unwrap();
+        let reference = ReferencePopulation::from_meshes(meshes).unwrap();
+        fidelity_summary(&Cycler(meshes.to_vec(), scale), &reference, &training, 1).unwrap()
+    }
+
+    #[test]
+    fn members_that_are_the_patients_lie_as_far_out_as_the_patients() {
+        let meshes = stretched(25);
+        let f = summary(&meshes, 1.0);
+        let d = f
+            .biomarker_distance
+            .clone()
+            .expect("25 meshes are not a small population");
+        // 1,000 members cycle through the 25 meshes: the same distances, 40 times each.
+        assert!(d.training_p95 > 1.0, "{d:?}");
+        assert!(
+            (d.members_p95 - d.training_p95).abs() < 0.05 * d.training_p95,
+            "{d:?}"
+        );
+        let sentence = f.distance_sentence().unwrap();
+        assert!(
+            sentence.contains(&format!("{:.1}", d.members_p95)),
+            "{sentence}"
+        );
+        // Every member 30% larger: each biomarker far out, and jointly farther still.
+        let larger = summary(&meshes, 1.3).biomarker_distance.unwrap();
+        assert!(larger.members_p95 > 3.0 * d.training_p95, "{larger:?}");
+        assert_eq!(larger.training_p95, d.training_p95);
+    }
+
+    #[test]
+    fn a_small_population_gets_no_distance() {
+        let f = summary(&stretched(8), 1.0);
+        assert!(f.biomarker_distance.is_none());
+        assert!(f.distance_sentence().is_none());
+    }
 }

@@ -91,7 +91,10 @@ fn fidelity_section(s: &ModelSummary) -> String {
         &sentence,
         &rows,
     );
-    if let Some(sentence) = f.acceptance_sentence() {
+    for sentence in [f.acceptance_sentence(), f.distance_sentence()]
+        .into_iter()
+        .flatten()
+    {
         let _ = write!(out, "<p>{}.</p>", escape(&sentence));
     }
     if let Some(note) = &f.population_note {
