@@ -3,6 +3,7 @@
 
 pub mod bench;
 mod bench_clusters;
+mod bench_fidelity;
 pub mod bench_models;
 pub mod bench_privacy;
 pub mod bench_report;

@@ -1,0 +1,136 @@
+use super::*;
+use crate::mesh::phantom::{self, Family};
+use crate::models::progress::Silent;
+use crate::models::{ModelType, StoredModel};
+
+#[test]
+fn fit_samples_and_reconstructs_phantoms() {
+    let meshes: Vec<Mesh> = phantom::generate(Family::Lv, 8, 3)
+        .into_iter()
+        .map(|p| p.mesh)
+        .collect();
+    let (training, holdout) = meshes.split_at(6);
+    let started = std::time::Instant::now();
+    let input = FitInput {
+        training,
+        holdout,
+        template_indices: &[],
+        seed: 1,
+    };
+    let params = ModelType::parse_name("rsmp")
+        .unwrap()
+        .parse_params(&serde_json::Value::Null)
+        .unwrap();
+    let outcome = params.fit(&input, &mut Silent).unwrap();
+    eprintln!(
+        "rsmp fit of 6+2 LV phantoms: {:.1} s",
+        started.elapsed().as_secs_f64()
+    );
+    let model: &RsmpModel = outcome.model.downcast().expect("an rsmp model");
+    let summary = &outcome.summary;
+    assert_eq!(summary.training_count, 6);
+    assert!(summary.n_modes.unwrap() >= 1 && summary.n_modes.unwrap() <= 5);
+    let generalisation = summary.evaluation.generalisation.unwrap();
+    eprintln!(
+        "generalisation HD {:.2} mm, specificity HD {:.2} mm",
+        generalisation.hd.mean, summary.evaluation.specificity.hd.mean
+    );
+    assert!(generalisation.hd.mean > 0.0 && generalisation.hd.mean < 20.0);
+    // The fit's own cohort: its joint A^μ beside the Gaussian yardstick of the six
+    // training biomarkers (a fraction that 100,000 Gaussian draws of six biomarkers
+    // cannot make 0 or 1).
+    let fidelity = summary.fidelity.as_ref().expect("a fidelity summary");
+    let joint = fidelity.joint_acceptance.expect("the cohort's joint A^μ");
+    let gaussian = fidelity.gaussian_joint_acceptance.expect("the yardstick");
+    assert!((0.0..=1.0).contains(&joint), "{joint}");
+    assert!(gaussian > 0.5 && gaussian < 1.0, "{gaussian}");
+    let sentence = fidelity.acceptance_sentence().unwrap();
+    assert!(
+        sentence.contains(&format!("{:.1}%", 100.0 * gaussian)),
+        "{sentence}"
+    );
+    assert!(fidelity.population_note.is_some());
+    let sample = model
+        .sample(
+            &mut crate::models::cohort::draw_rng(5, 0),
+            Sampling::Gaussian,
+        )
+        .unwrap();
+    assert_eq!(sample.cluster, 0);
+    let sample = sample.mesh;
+    assert_eq!(sample.faces, model.template.faces);
+    let volume = crate::mesh::measures::volume_ml(&sample);
+    let reference = &outcome.reference.stats[0];
+    assert!(
+        volume > 0.5 * reference.min && volume < 1.5 * reference.max,
+        "{volume} ml"
+    );
+    // The refined correspondences keep a held-out heart's wall volume (rigid ones lost up
+    // to 60% of it by matching template points to the nearer wall).
+    for mesh in holdout {
+        let normalised = model.reconstruct(mesh).unwrap().normalised;
+        let shape = Mesh::new(normalised, model.template.faces.clone());
+        let (kept, truth) = (
+            crate::mesh::measures::volume_ml(&shape),
+            crate::mesh::measures::volume_ml(mesh),
+        );
+        assert!(
+            (kept / truth - 1.0).abs() < 0.03,
+            "{kept:.1} of {truth:.1} ml"
+        );
+    }
+    // A training patient sent in again comes back nearest to itself and is flagged (six
+    // meshes: the guard keeps the normalised shapes with the leave-one-out threshold).
+    let guard = &outcome.model.training;
+    let index = crate::eval::privacy::CorrespondedShapes::new(&guard.normalised_f64()[0]).unwrap();
+    for (k, mesh) in training.iter().enumerate() {
+        let again = model.reconstruct(mesh).unwrap().mesh.vertices;
+        let nearest = index.nearest(&again).unwrap();
+        assert_eq!(nearest.index, k);
+        assert!(
+            nearest.distance_mm < guard.privacy[0].threshold_mm,
+            "{nearest:?} against {} mm",
+            guard.privacy[0].threshold_mm
+        );
+    }
+    let bytes = outcome.model.to_bytes().unwrap();
+    let back = StoredModel::from_bytes(&bytes).unwrap();
+    let back_model: &RsmpModel = back.downcast().expect("the stored model is rsmp");
+    assert_eq!(back_model.pca, model.pca);
+    assert_eq!(back.training.shapes.len(), 6);
+    assert!(back.training.privacy[0].threshold_mm > 0.0);
+    assert_eq!(back_model.draw_smoothing_steps, 2);
+    assert!(back_model.procrustes);
+
+    // Drawn shapes are smoothed by the model's Taubin steps; without them the same draw
+    // is the plain PCA shape, with more surface (folds).
+    let mut plain = back_model.clone();
+    plain.draw_smoothing_steps = 0;
+    let draw = |m: &RsmpModel| {
+        m.sample(
+            &mut crate::models::cohort::draw_rng(5, 1),
+            Sampling::Gaussian,
+        )
+        .unwrap()
+        .mesh
+    };
+    let (smoothed, unsmoothed) = (draw(back_model), draw(&plain));
+    let area = crate::mesh::measures::area_mm2;
+    assert!(area(&smoothed) < area(&unsmoothed));
+    let volumes = (
+        crate::mesh::measures::volume_ml(&smoothed),
+        crate::mesh::measures::volume_ml(&unsmoothed),
+    );
+    assert!((volumes.0 / volumes.1 - 1.0).abs() < 0.02, "{volumes:?}");
+    // A model stored before the field existed draws unsmoothed, as it did.
+    let mut stored = serde_json::to_value(back_model).unwrap();
+    stored
+        .as_object_mut()
+        .unwrap()
+        .remove("draw_smoothing_steps");
+    stored.as_object_mut().unwrap().remove("procrustes");
+    let old: RsmpModel = serde_json::from_value(stored).unwrap();
+    assert_eq!(old.draw_smoothing_steps, 0);
+    assert!(!old.procrustes);
+    assert_eq!(draw(&old), unsmoothed);
+}
