@@ -6,7 +6,9 @@
 //! with for privacy) and of its draws with those of the training meshes: mean and sd ratios,
 //! joint A^μ, and the Mahalanobis distance of each shape's biomarkers from the training mean
 //! (which sees a combination no patient has, such as a long axis too long for the volume,
-//! where each biomarker alone is inside its interval).
+//! where each biomarker alone is inside its interval). `PARAMS='{"beta": 30}'` sets the
+//! model's parameters (JSON, as a fit request's `params`); for ASMG models,
+//! `TEMPERATURES=1.2,1.5` adds draws whose standard latent coordinates are scaled by each.
 
 use cohortforge::eval::biomarkers::{Biomarkers, ExtentAxes};
 use cohortforge::eval::stats;
@@ -17,8 +19,9 @@ use cohortforge::models::asmg::model::AsmgModel;
 use cohortforge::models::progress::Silent;
 use cohortforge::models::{FitInput, ModelType};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
 
 fn row(mesh: &Mesh) -> [f64; 6] {
     let b = Biomarkers::measure(mesh, ExtentAxes::Surface).expect("biomarkers");
@@ -48,9 +51,12 @@ fn main() {
         template_indices: &[],
         seed,
     };
+    let json = std::env::var("PARAMS").map_or(serde_json::Value::Null, |text| {
+        serde_json::from_str(&text).expect("PARAMS is JSON")
+    });
     let params = ModelType::parse_name(model)
         .unwrap()
-        .parse_params(&serde_json::Value::Null)
+        .parse_params(&json)
         .unwrap();
     let outcome = params.fit(&input, &mut Silent).unwrap();
     let stored = &outcome.model;
@@ -95,6 +101,12 @@ fn main() {
     reference.print("training meshes", &meshes, None);
     reference.print("reproduced", &reproduced, Some(&mean_axis));
     reference.print("draws", &drawn, Some(&mean_axis));
+    if let Some(asmg) = stored.model.as_any().downcast_ref::<AsmgModel>() {
+        for t in temperatures() {
+            let tempered = tempered_draws(asmg, t, draws, seed);
+            reference.print(&format!("draws, latent x{t}"), &tempered, Some(&mean_axis));
+        }
+    }
     if let Some(asmg) = stored.model.as_any().downcast_ref::<AsmgModel>()
         && let Some(c) = &asmg.spread_calibration
     {
@@ -123,6 +135,37 @@ fn main() {
             c.residual_gain
         );
     }
+}
+
+/// Latent temperatures from `TEMPERATURES` (comma-separated; none by default).
+fn temperatures() -> Vec<f32> {
+    std::env::var("TEMPERATURES").map_or_else(
+        |_| Vec::new(),
+        |text| {
+            text.split(',')
+                .filter_map(|t| t.trim().parse().ok())
+                .collect()
+        },
+    )
+}
+
+/// ASMG draws whose standard latent coordinates are scaled by `t` before the latent prior
+/// (the calibration, if the model has one, applies after decoding).
+fn tempered_draws(asmg: &AsmgModel, t: f32, draws: usize, seed: u64) -> Vec<Mesh> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let latent = asmg.sizes.vae_latent;
+    let codes: Vec<Vec<f32>> = (0..draws)
+        .map(|_| {
+            let standard: Vec<f32> = (0..latent)
+                .map(|_| t * rng.sample::<f32, _>(StandardNormal).clamp(-3.0, 3.0))
+                .collect();
+            match &asmg.latent_prior {
+                Some(prior) => prior.code(&standard),
+                None => standard,
+            }
+        })
+        .collect();
+    asmg.decode(&codes).unwrap()
 }
 
 fn vertex_count(meshes: &[Mesh]) -> usize {
