@@ -8,7 +8,10 @@
 //! (which sees a combination no patient has, such as a long axis too long for the volume,
 //! where each biomarker alone is inside its interval). `PARAMS='{"beta": 30}'` sets the
 //! model's parameters (JSON, as a fit request's `params`); for ASMG models,
-//! `TEMPERATURES=1.2,1.5` adds draws whose standard latent coordinates are scaled by each.
+//! `TEMPERATURES=1.2,1.5` adds draws whose standard latent coordinates are scaled by each,
+//! and `VOLUME_STRETCH=0.95` those draws moved along the training shapes' regression on
+//! volume (and on volume and area) until their volume sd (and volume–area covariance) is
+//! that share of the training meshes'.
 
 use cohortforge::eval::biomarkers::{Biomarkers, ExtentAxes};
 use cohortforge::eval::stats;
@@ -105,6 +108,17 @@ fn main() {
         for t in temperatures() {
             let tempered = tempered_draws(asmg, t, draws, seed);
             reference.print(&format!("draws, latent x{t}"), &tempered, Some(&mean_axis));
+            if let Some(share) = std::env::var("VOLUME_STRETCH")
+                .ok()
+                .and_then(|v| v.parse::<f64>().ok())
+            {
+                let target =
+                    share * stats::sample_sd(&meshes.iter().map(|m| row(m)[0]).collect::<Vec<_>>());
+                let stretched = volume_stretched(&reproduced, &tempered, target);
+                reference.print("  volume-stretched", &stretched, Some(&mean_axis));
+                let both = biomarker_stretched(&reproduced, &tempered, &meshes, share);
+                reference.print("  volume+area-stretched", &both, Some(&mean_axis));
+            }
         }
     }
     if let Some(asmg) = stored.model.as_any().downcast_ref::<AsmgModel>()
@@ -166,6 +180,107 @@ fn tempered_draws(asmg: &AsmgModel, t: f32, draws: usize, seed: u64) -> Vec<Mesh
         })
         .collect();
     asmg.decode(&codes).unwrap()
+}
+
+/// `shapes` moved along the training shapes' per-ml regression direction so that their
+/// volume sd becomes `target` (ml).
+fn volume_stretched(training: &[Mesh], shapes: &[Mesh], target: f64) -> Vec<Mesh> {
+    let volumes: Vec<f64> = training.iter().map(|m| row(m)[0]).collect();
+    let mean_volume = volumes.iter().sum::<f64>() / volumes.len() as f64;
+    let n = vertex_count(training);
+    let mut direction = vec![[0.0; 3]; n];
+    let mut mean = vec![[0.0; 3]; n];
+    for m in training {
+        for (i, p) in m.vertices.iter().enumerate() {
+            (0..3).for_each(|k| mean[i][k] += p[k] / training.len() as f64);
+        }
+    }
+    let mut var = 0.0;
+    for (m, v) in training.iter().zip(&volumes) {
+        let dv = v - mean_volume;
+        var += dv * dv;
+        for (i, p) in m.vertices.iter().enumerate() {
+            (0..3).for_each(|k| direction[i][k] += dv * (p[k] - mean[i][k]));
+        }
+    }
+    direction
+        .iter_mut()
+        .for_each(|d| d.iter_mut().for_each(|x| *x /= var));
+    let drawn: Vec<f64> = shapes.iter().map(|m| row(m)[0]).collect();
+    let drawn_mean = drawn.iter().sum::<f64>() / drawn.len() as f64;
+    let gain = target / stats::sample_sd(&drawn);
+    shapes
+        .iter()
+        .zip(&drawn)
+        .map(|(m, v)| {
+            let step = (gain - 1.0) * (v - drawn_mean);
+            let vertices = m
+                .vertices
+                .iter()
+                .zip(&direction)
+                .map(|(p, d)| [p[0] + step * d[0], p[1] + step * d[1], p[2] + step * d[2]])
+                .collect();
+            Mesh::new(vertices, m.faces.clone())
+        })
+        .collect()
+}
+
+/// `shapes` moved along the training shapes' regression on (volume, area) so that their
+/// (volume, area) covariance becomes `share`² times the training meshes'.
+fn biomarker_stretched(
+    training: &[Mesh],
+    shapes: &[Mesh],
+    meshes: &[Mesh],
+    share: f64,
+) -> Vec<Mesh> {
+    let pick = |m: &Mesh| {
+        let r = row(m);
+        DVector::from_vec(vec![r[0], r[1]])
+    };
+    let centred = |rows: &[DVector<f64>]| {
+        let mean = rows.iter().fold(DVector::zeros(2), |s, r| s + r) / rows.len() as f64;
+        let cov = rows.iter().fold(DMatrix::zeros(2, 2), |s, r| {
+            s + (r - &mean) * (r - &mean).transpose()
+        }) / (rows.len() as f64 - 1.0);
+        (mean, cov)
+    };
+    let b_train: Vec<DVector<f64>> = training.iter().map(pick).collect();
+    let (b_mean, b_cov) = centred(&b_train);
+    let n = vertex_count(training) * 3;
+    let x = |m: &Mesh| DVector::from_iterator(n, m.vertices.iter().flat_map(|p| *p));
+    let x_mean = training.iter().fold(DVector::zeros(n), |s, m| s + x(m)) / training.len() as f64;
+    let cross = training
+        .iter()
+        .zip(&b_train)
+        .fold(DMatrix::zeros(n, 2), |s, (m, b)| {
+            s + (x(m) - &x_mean) * (b - &b_mean).transpose()
+        })
+        / (training.len() as f64 - 1.0);
+    let direction = cross * b_cov.try_inverse().unwrap();
+    let (_, target) = centred(&meshes.iter().map(pick).collect::<Vec<_>>());
+    let b_drawn: Vec<DVector<f64>> = shapes.iter().map(pick).collect();
+    let (d_mean, d_cov) = centred(&b_drawn);
+    let sqrt = |m: &DMatrix<f64>, power: f64| {
+        let e = m.clone().symmetric_eigen();
+        let d = DMatrix::from_diagonal(&e.eigenvalues.map(|v| v.powf(power)));
+        &e.eigenvectors * d * e.eigenvectors.transpose()
+    };
+    let map = sqrt(&(target * share * share), 0.5) * sqrt(&d_cov, -0.5);
+    shapes
+        .iter()
+        .zip(&b_drawn)
+        .map(|(m, b)| {
+            let deviation = b - &d_mean;
+            let step = &direction * (&map * &deviation - &deviation);
+            let moved = x(m) + step;
+            let vertices = moved
+                .as_slice()
+                .chunks_exact(3)
+                .map(|p| [p[0], p[1], p[2]])
+                .collect();
+            Mesh::new(vertices, m.faces.clone())
+        })
+        .collect()
 }
 
 fn vertex_count(meshes: &[Mesh]) -> usize {
