@@ -112,11 +112,9 @@ fn main() {
                 .ok()
                 .and_then(|v| v.parse::<f64>().ok())
             {
-                let target =
-                    share * stats::sample_sd(&meshes.iter().map(|m| row(m)[0]).collect::<Vec<_>>());
-                let stretched = volume_stretched(&reproduced, &tempered, target);
+                let stretched = biomarker_stretched(&reproduced, &tempered, &meshes, share, &[0]);
                 reference.print("  volume-stretched", &stretched, Some(&mean_axis));
-                let both = biomarker_stretched(&reproduced, &tempered, &meshes, share);
+                let both = biomarker_stretched(&reproduced, &tempered, &meshes, share, &[0, 1]);
                 reference.print("  volume+area-stretched", &both, Some(&mean_axis));
             }
         }
@@ -182,64 +180,23 @@ fn tempered_draws(asmg: &AsmgModel, t: f32, draws: usize, seed: u64) -> Vec<Mesh
     asmg.decode(&codes).unwrap()
 }
 
-/// `shapes` moved along the training shapes' per-ml regression direction so that their
-/// volume sd becomes `target` (ml).
-fn volume_stretched(training: &[Mesh], shapes: &[Mesh], target: f64) -> Vec<Mesh> {
-    let volumes: Vec<f64> = training.iter().map(|m| row(m)[0]).collect();
-    let mean_volume = volumes.iter().sum::<f64>() / volumes.len() as f64;
-    let n = vertex_count(training);
-    let mut direction = vec![[0.0; 3]; n];
-    let mut mean = vec![[0.0; 3]; n];
-    for m in training {
-        for (i, p) in m.vertices.iter().enumerate() {
-            (0..3).for_each(|k| mean[i][k] += p[k] / training.len() as f64);
-        }
-    }
-    let mut var = 0.0;
-    for (m, v) in training.iter().zip(&volumes) {
-        let dv = v - mean_volume;
-        var += dv * dv;
-        for (i, p) in m.vertices.iter().enumerate() {
-            (0..3).for_each(|k| direction[i][k] += dv * (p[k] - mean[i][k]));
-        }
-    }
-    direction
-        .iter_mut()
-        .for_each(|d| d.iter_mut().for_each(|x| *x /= var));
-    let drawn: Vec<f64> = shapes.iter().map(|m| row(m)[0]).collect();
-    let drawn_mean = drawn.iter().sum::<f64>() / drawn.len() as f64;
-    let gain = target / stats::sample_sd(&drawn);
-    shapes
-        .iter()
-        .zip(&drawn)
-        .map(|(m, v)| {
-            let step = (gain - 1.0) * (v - drawn_mean);
-            let vertices = m
-                .vertices
-                .iter()
-                .zip(&direction)
-                .map(|(p, d)| [p[0] + step * d[0], p[1] + step * d[1], p[2] + step * d[2]])
-                .collect();
-            Mesh::new(vertices, m.faces.clone())
-        })
-        .collect()
-}
-
-/// `shapes` moved along the training shapes' regression on (volume, area) so that their
-/// (volume, area) covariance becomes `share`² times the training meshes'.
+/// `shapes` moved along the training shapes' regression on the biomarkers `columns` (of
+/// [`row`]) so that those biomarkers' covariance becomes `share`² times the training meshes'.
 fn biomarker_stretched(
     training: &[Mesh],
     shapes: &[Mesh],
     meshes: &[Mesh],
     share: f64,
+    columns: &[usize],
 ) -> Vec<Mesh> {
+    let k = columns.len();
     let pick = |m: &Mesh| {
         let r = row(m);
-        DVector::from_vec(vec![r[0], r[1]])
+        DVector::from_iterator(k, columns.iter().map(|&c| r[c]))
     };
     let centred = |rows: &[DVector<f64>]| {
-        let mean = rows.iter().fold(DVector::zeros(2), |s, r| s + r) / rows.len() as f64;
-        let cov = rows.iter().fold(DMatrix::zeros(2, 2), |s, r| {
+        let mean = rows.iter().fold(DVector::zeros(k), |s, r| s + r) / rows.len() as f64;
+        let cov = rows.iter().fold(DMatrix::zeros(k, k), |s, r| {
             s + (r - &mean) * (r - &mean).transpose()
         }) / (rows.len() as f64 - 1.0);
         (mean, cov)
@@ -252,7 +209,7 @@ fn biomarker_stretched(
     let cross = training
         .iter()
         .zip(&b_train)
-        .fold(DMatrix::zeros(n, 2), |s, (m, b)| {
+        .fold(DMatrix::zeros(n, k), |s, (m, b)| {
             s + (x(m) - &x_mean) * (b - &b_mean).transpose()
         })
         / (training.len() as f64 - 1.0);
