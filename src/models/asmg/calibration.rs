@@ -8,7 +8,9 @@
 //! correlated across the modes, and a biomarker such as volume, which moves along several of
 //! them, then varies less than in the training shapes even when every mode's sd is right.
 //! What lies outside the modes is left as drawn, or pulled in when it varies more there than
-//! the training shapes do.
+//! the training shapes do. This is `calibration: "modes"`; the default moves draws along the
+//! training shapes' regression on volume and area instead (see [`super::biomarker_calibration`]),
+//! which keeps the draws' combinations of lengths and widths.
 //!
 //! Shapes are flattened atlas-domain vertex positions `[3·N_μ]` in mm.
 
@@ -17,7 +19,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use super::biomarker_calibration::BiomarkerCalibration;
 use super::model::AsmgModel;
+use super::params::CalibrationKind;
 use crate::geometry::pca::Sampling;
 use crate::models::ModelError;
 
@@ -215,12 +219,17 @@ impl SpreadCalibration {
 }
 
 impl AsmgModel {
-    /// Fits and keeps the spread calibration from the training shapes (flattened, mm; each
-    /// with a weight, `None`: equal) and [`CALIBRATION_DRAWS`] draws seeded from `seed`.
+    /// Fits and keeps the spread calibration that `params.calibration` names from the
+    /// training shapes (flattened, mm; each with a weight, `None`: equal), the (volume ml,
+    /// area cm²) of their meshes (used by the biomarker-directed one) and
+    /// [`CALIBRATION_DRAWS`] draws seeded from `seed`. The biomarker-directed one falls back
+    /// to the modes when volume and area cannot be regressed on (fewer than three shapes, or
+    /// the two do not vary independently).
     pub fn calibrate_spread(
         &mut self,
         training: &[Vec<f32>],
         weights: Option<&[f32]>,
+        measured: &[[f64; 2]],
         seed: u64,
     ) -> Result<(), ModelError> {
         let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_add(CALIBRATION_SEED_OFFSET));
@@ -228,23 +237,38 @@ impl AsmgModel {
             .map(|_| self.draw_code(&mut rng, Sampling::Gaussian))
             .collect();
         let drawn = self.decode_uncalibrated(&codes)?;
-        self.spread_calibration = SpreadCalibration::fit(training, weights, &drawn);
+        self.biomarker_calibration = match self.params.calibration {
+            CalibrationKind::Biomarkers => {
+                BiomarkerCalibration::fit(training, weights, measured, &drawn, &self.atlas.faces)
+            }
+            CalibrationKind::Modes => None,
+        };
+        self.spread_calibration = match self.biomarker_calibration {
+            Some(_) => None,
+            None => SpreadCalibration::fit(training, weights, &drawn),
+        };
         Ok(())
     }
 }
 
 /// The symmetric map `A` `[K][K]` that gives centred draw coordinates `[draws][K]` the
-/// covariance `diag(variances)`: `A = S^-½ (S^½ T S^½)^½ S^-½` with `S` the draws' covariance
-/// and `T` the training one (the optimal-transport map between the two Gaussians), its
-/// eigenvalues then bounded by [`MAX_GAIN`] like the per-mode gains.
+/// covariance `diag(variances)` (see [`transport_map`]).
 fn covariance_map(coords: &[Vec<f64>], variances: &[f64]) -> DMatrix<f64> {
     let k = variances.len();
     let n = coords.len() as f64;
     let drawn = DMatrix::from_fn(k, k, |a, b| {
         coords.iter().map(|c| c[a] * c[b]).sum::<f64>() / (n - 1.0)
     });
+    let target = DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(variances));
+    transport_map(drawn, &target)
+}
+
+/// The symmetric map `A = S^-½ (S^½ T S^½)^½ S^-½` that takes centred values of covariance
+/// `S` to covariance `T` moving them least (the optimal-transport map between the two
+/// Gaussians), its eigenvalues bounded by [`MAX_GAIN`] like the per-mode gains.
+pub(super) fn transport_map(drawn: DMatrix<f64>, target: &DMatrix<f64>) -> DMatrix<f64> {
     // A direction the draws do not vary in at all gets the largest gain.
-    let floor = variances.iter().copied().fold(0.0, f64::max) * 1e-12;
+    let floor = target.diagonal().iter().copied().fold(0.0, f64::max) * 1e-12;
     let root = |m: DMatrix<f64>, power: f64| -> DMatrix<f64> {
         let e = SymmetricEigen::new(m);
         let d = e.eigenvalues.map(|v| v.max(floor).powf(power));
@@ -252,7 +276,6 @@ fn covariance_map(coords: &[Vec<f64>], variances: &[f64]) -> DMatrix<f64> {
     };
     let drawn_root = root(drawn.clone(), 0.5);
     let drawn_inverse_root = root(drawn, -0.5);
-    let target = DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(variances));
     let middle = root(&drawn_root * target * &drawn_root, 0.5);
     let map = &drawn_inverse_root * middle * &drawn_inverse_root;
     let map = (&map + map.transpose()) * 0.5;

@@ -3,6 +3,7 @@
 //! train the beta-VAE generator on the smoothed normalised shapes. The steps are shared
 //! with `atlas-r-asmg`, which refines Ψ and the atlas between the atlas and the generator.
 
+use super::biomarker_calibration::mesh_biomarkers;
 use super::embeddings::Embeddings;
 use super::init::{AtlasInit, initial_atlas};
 use super::learn::{LearnedAtlas, ShapeInput, learn_atlas};
@@ -276,6 +277,9 @@ pub(crate) struct GeneratorData<'a> {
     pub(crate) shapes: &'a [Vec<[f64; 3]>],
     /// Weight per shape (`None`: all equal).
     pub(crate) weights: Option<&'a [f32]>,
+    /// (volume ml, area cm²) of each shape's training mesh (simplified), in `shapes`' order:
+    /// the spread the calibration gives the draws.
+    pub(crate) measured: &'a [[f64; 2]],
     /// `(m, M)` for the generator of cluster `m` of `M`; `None` for a model of one atlas.
     pub(crate) cluster: Option<(usize, usize)>,
 }
@@ -344,7 +348,7 @@ pub(crate) fn train_generator(
     model.procrustes_mean = procrustes_mean;
     model.nonrigid = params.nonrigid_refinement();
     if params.calibrate_spread {
-        model.calibrate_spread(&shapes, data.weights, seed)?;
+        model.calibrate_spread(&shapes, data.weights, data.measured, seed)?;
     }
     Ok((model, curve))
 }
@@ -365,12 +369,14 @@ pub(crate) fn train_generator_and_build(
         mut losses,
     } = learned;
     stages.enter("generator");
+    let measured: Vec<[f64; 2]> = aligned.meshes.iter().map(mesh_biomarkers).collect();
     let data = GeneratorData {
         graph: &graph,
         atlas,
         reference: &aligned.reference,
         shapes: &smoothed,
         weights: None,
+        measured: &measured,
         cluster: None,
     };
     let (model, curve) = train_generator(data, params, seed, stages, progress)?;

@@ -3,8 +3,10 @@
 use super::*;
 use crate::geometry::pca::Sampling;
 use crate::geometry::transform::RigidTransform;
-use crate::mesh::measures::volume_ml;
+use crate::mesh::measures::{area_cm2, volume_ml};
 use crate::mesh::phantom::{self, Family};
+use crate::models::asmg::CalibrationKind;
+use crate::models::asmg::biomarker_calibration::biomarkers;
 use crate::models::cohort::draw_rng;
 use crate::models::progress::{Cancelled, ProgressUpdate, Silent};
 use crate::models::{FitOutcome, ModelType, ShapeModel, StoredModel};
@@ -199,6 +201,7 @@ fn spread_calibration_is_fitted_kept_and_applied_to_draws() {
     let meshes = phantoms(8);
     let params = AsmgParams {
         calibrate_spread: true,
+        calibration: CalibrationKind::Modes,
         ..quick()
     };
     let outcome = fit(&meshes, &[], &params, None, 4, &mut Silent).unwrap();
@@ -244,4 +247,61 @@ fn spread_calibration_is_fitted_kept_and_applied_to_draws() {
         "sd ratio {ratio} vs gain {}",
         calibration.gain[0]
     );
+}
+
+#[test]
+fn biomarker_calibration_gives_draws_the_training_volume_and_area() {
+    let meshes = phantoms(8);
+    let params = AsmgParams {
+        calibrate_spread: true,
+        ..quick()
+    };
+    assert_eq!(
+        params.calibration,
+        CalibrationKind::Biomarkers,
+        "the default"
+    );
+    let outcome = fit(&meshes, &[], &params, None, 4, &mut Silent).unwrap();
+    let bytes = outcome.model.to_bytes().unwrap();
+    let back = StoredModel::from_bytes(&bytes).unwrap();
+    let model: &AsmgModel = back.downcast().expect("an asmg model");
+    assert!(
+        model.spread_calibration.is_none(),
+        "one calibration, not both"
+    );
+    let calibration = model.biomarker_calibration.as_ref().expect("a calibration");
+    let codes: Vec<Vec<f32>> = (0..300)
+        .map(|k| model.draw_code(&mut draw_rng(11, k), Sampling::Gaussian))
+        .collect();
+    let faces = &model.atlas.faces;
+    let mean =
+        |rows: &[[f64; 2]], k: usize| rows.iter().map(|r| r[k]).sum::<f64>() / rows.len() as f64;
+    let raw: Vec<[f64; 2]> = model
+        .decode_uncalibrated(&codes)
+        .unwrap()
+        .iter()
+        .map(|s| biomarkers(s, faces))
+        .collect();
+    let calibrated: Vec<[f64; 2]> = model
+        .decode(&codes)
+        .unwrap()
+        .iter()
+        .map(|m| [volume_ml(m).abs(), area_cm2(m)])
+        .collect();
+    for k in 0..2 {
+        // The calibration's own draws had `drawn_mean`; these are others of the same prior.
+        let (before, after, target) = (
+            mean(&raw, k),
+            mean(&calibrated, k),
+            calibration.target_mean[k],
+        );
+        assert!(
+            (before / calibration.drawn_mean[k] - 1.0).abs() < 0.02,
+            "{k}: {before}"
+        );
+        assert!(
+            (after / target - 1.0).abs() < 0.02,
+            "{k}: {after} vs {target}"
+        );
+    }
 }

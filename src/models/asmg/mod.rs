@@ -17,6 +17,7 @@
 
 pub mod atlas;
 pub mod attention;
+pub mod biomarker_calibration;
 pub mod calibration;
 pub mod embeddings;
 pub mod fit;
@@ -48,7 +49,7 @@ pub use learn::{
     normalise_shapes,
 };
 pub use model::AsmgModel;
-pub use params::{AsmgParams, CheckedAsmgParams, FeatureKind, SmoothingTarget};
+pub use params::{AsmgParams, CalibrationKind, CheckedAsmgParams, FeatureKind, SmoothingTarget};
 pub use smoothing::{Smoother, Smoothing, SmoothingMethod, SmoothingParams, smooth};
 
 use crate::models::progress::{Progress, Stages};

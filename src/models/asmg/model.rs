@@ -14,6 +14,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 
+use super::biomarker_calibration::BiomarkerCalibration;
 use super::calibration::SpreadCalibration;
 use super::embeddings::Embeddings;
 use super::learn::{ShapeInput, normalise_shapes};
@@ -124,6 +125,11 @@ pub struct AsmgModel {
     /// stored before it existed, or fitted with `calibrate_spread` off: draws as decoded).
     #[serde(default)]
     pub spread_calibration: Option<SpreadCalibration>,
+    /// Moves of drawn shapes along the training shapes' regression on volume and area that
+    /// give the draws their volume and area spread (fitted with `calibration: "biomarkers"`;
+    /// it replaces `spread_calibration`; absent in models stored before it existed).
+    #[serde(default)]
+    pub biomarker_calibration: Option<BiomarkerCalibration>,
     /// The mean the generator's shapes were aligned to, `[N_μ, 3]` mm (fitted with
     /// `procrustes`; absent in models stored before it: shapes enter as normalised).
     #[serde(default)]
@@ -225,6 +231,7 @@ impl AsmgModel {
             generator_weights: weights.1,
             latent_prior: None,
             spread_calibration: None,
+            biomarker_calibration: None,
             procrustes_mean: None,
             nonrigid: None,
             networks: OnceLock::new(),
@@ -327,7 +334,10 @@ impl AsmgModel {
     /// has one.
     pub fn decode(&self, latents: &[Vec<f32>]) -> Result<Vec<Mesh>, ModelError> {
         let mut shapes = self.decode_uncalibrated(latents)?;
-        if let Some(calibration) = &self.spread_calibration {
+        if let Some(calibration) = &self.biomarker_calibration {
+            let faces = &self.atlas.faces;
+            shapes.iter_mut().for_each(|s| calibration.apply(s, faces));
+        } else if let Some(calibration) = &self.spread_calibration {
             shapes.iter_mut().for_each(|s| calibration.apply(s));
         }
         Ok(shapes.iter().map(|s| self.to_mesh(s)).collect())

@@ -102,6 +102,20 @@ impl SmoothingTarget {
     }
 }
 
+/// How drawn shapes get the training shapes' spread (with `calibrate_spread` on).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum CalibrationKind {
+    /// Each draw moved along the training shapes' regression on volume and area until the
+    /// draws' volume and area have the training shapes' mean and covariance (see
+    /// [`super::biomarker_calibration`]); what else the draws do stays as decoded.
+    #[default]
+    Biomarkers,
+    /// One linear map of the draws' coordinates on the training shapes' principal modes
+    /// giving them the training mean and covariance there (see [`super::calibration`]).
+    Modes,
+}
+
 /// Parameters of an ASMG fit.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -155,6 +169,11 @@ pub struct AsmgParams {
     /// training shapes: without it, and with `variance_multiplier` 30 and `gamma` 1, cohorts
     /// of 100 LV phantoms had half the training meshes' volume sd).
     pub calibrate_spread: bool,
+    /// Which calibration: `biomarkers` (draws moved along the training shapes' regression on
+    /// volume and area) or `modes` (a linear map on the principal modes, the only one before
+    /// `calibration` existed; models stored then were calibrated on the modes whatever their
+    /// stored parameters read).
+    pub calibration: CalibrationKind,
     /// Align the shapes a generator learns from to their mean (rigid generalised Procrustes)
     /// first, so that no latent direction is spent on the pose the pre-alignment left; a new
     /// mesh's normalised shape is aligned to that mean before it is encoded, and its
@@ -196,6 +215,7 @@ impl Default for AsmgParams {
             multistart: true,
             cpd_max_iterations: DEFAULT_CPD_MAX_ITERATIONS,
             calibrate_spread: true,
+            calibration: CalibrationKind::Biomarkers,
             procrustes: false,
             nonrigid: false,
         }

@@ -31,6 +31,7 @@ pub use model::MatlasModel;
 pub use params::{AtlasesChoice, CheckedMatlasParams, MatlasParams};
 
 use crate::mesh::Mesh;
+use crate::models::asmg::biomarker_calibration::mesh_biomarkers;
 use crate::models::asmg::fit::{
     Aligned, GeneratorData, align_input, learn, simplified_atlas, starting_atlas, train_generator,
     train_graph,
@@ -229,6 +230,10 @@ fn train_generators(
             .map(|&k| memberships.smoothed[m][k].clone())
             .collect();
         let weights: Vec<f32> = members.iter().map(|&k| column[k] as f32).collect();
+        let measured: Vec<[f64; 2]> = members
+            .iter()
+            .map(|&k| mesh_biomarkers(&aligned.meshes[k]))
+            .collect();
         let uniform = weights.iter().all(|w| *w == 1.0);
         let data = GeneratorData {
             graph,
@@ -236,6 +241,7 @@ fn train_generators(
             reference: &aligned.reference,
             shapes: &shapes,
             weights: (!uniform).then_some(weights.as_slice()),
+            measured: &measured,
             cluster: (count > 1).then_some((m, count)),
         };
         let part_seed = if m == 0 {

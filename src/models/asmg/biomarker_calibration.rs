@@ -1,0 +1,189 @@
+//! Biomarker-directed spread calibration: the generator's draws combine a shape's dimensions
+//! as the training shapes do, but vary less in volume and area (a decoder averages away what
+//! the latent code does not pin down, here mostly wall thickness). Instead of remapping the
+//! draws on the principal modes (see [`super::calibration`], which restores the spread but
+//! mixes the modes, so that draws combine lengths and widths no patient has), every draw is
+//! moved along the direction in which the training shapes change with volume and area (their
+//! regression on the two) until the draws' volume and area have the mean and covariance of the
+//! training meshes' (the patients', not those of their normalised shapes, which the atlas
+//! smoothing shrinks a little). What the draws do in every other direction stays as decoded.
+//!
+//! Shapes are flattened atlas-domain vertex positions `[3·N_μ]` in mm; biomarkers are the
+//! enclosed volume (ml, unsigned) and the surface area (cm²) of a shape with the atlas faces.
+
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+use super::calibration::transport_map;
+use crate::mesh::Mesh;
+use crate::mesh::measures::{area_cm2, volume_ml};
+
+/// Number of calibrated biomarkers (volume, area).
+pub const BIOMARKERS: usize = 2;
+
+/// Moves drawn shapes along the training shapes' regression on volume and area.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BiomarkerCalibration {
+    /// Change of the shape per unit of each biomarker, `[2][3·N_μ]` (mm per ml, mm per cm²):
+    /// the training shapes' regression coefficients on (volume, area).
+    pub directions: Vec<Vec<f32>>,
+    /// Mean (volume ml, area cm²) of the uncalibrated draws.
+    pub drawn_mean: [f64; BIOMARKERS],
+    /// Mean (volume ml, area cm²) of the training shapes, which the draws are given.
+    pub target_mean: [f64; BIOMARKERS],
+    /// Map `[2][2]` (row-major rows) from a draw's biomarkers less `drawn_mean` to their
+    /// calibrated deviation from `target_mean`: symmetric, the least movement that gives the
+    /// draws the training shapes' biomarker covariance.
+    pub map: [[f64; BIOMARKERS]; BIOMARKERS],
+}
+
+/// (volume ml, area cm²) of a flattened shape `[3·N_μ]` with the atlas faces.
+pub fn biomarkers(shape: &[f32], faces: &[[u32; 3]]) -> [f64; BIOMARKERS] {
+    let vertices = shape
+        .chunks_exact(3)
+        .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
+        .collect();
+    mesh_biomarkers(&Mesh::new(vertices, faces.to_vec()))
+}
+
+/// (volume ml, unsigned, area cm²) of a mesh.
+pub fn mesh_biomarkers(mesh: &Mesh) -> [f64; BIOMARKERS] {
+    [volume_ml(mesh).abs(), area_cm2(mesh)]
+}
+
+/// Weighted mean and covariance of biomarker rows, the covariance divided by the total
+/// weight, with the factor that unbiases it (n/(n−1) for equal weights).
+fn moments(rows: &[[f64; BIOMARKERS]], w: &[f64]) -> (DVector<f64>, DMatrix<f64>, f64) {
+    let total: f64 = w.iter().sum();
+    let mean = rows
+        .iter()
+        .zip(w)
+        .fold(DVector::zeros(BIOMARKERS), |s, (r, w)| {
+            s + DVector::from_column_slice(r) * *w
+        })
+        / total;
+    let square: f64 = w.iter().map(|w| w * w).sum();
+    let unbias = total / (total - square / total);
+    let cov = rows
+        .iter()
+        .zip(w)
+        .fold(DMatrix::zeros(BIOMARKERS, BIOMARKERS), |s, (r, w)| {
+            let d = DVector::from_column_slice(r) - &mean;
+            s + &d * d.transpose() * *w
+        })
+        / total;
+    (mean, cov, unbias)
+}
+
+impl BiomarkerCalibration {
+    /// Fits the calibration from the training shapes (each with a weight, `None`: equal),
+    /// the biomarkers of their meshes (the targets; the shapes' own when `measured` is not
+    /// one row per shape), uncalibrated draws and the atlas faces. `None` when there are too
+    /// few shapes or draws, or when volume and area do not vary independently in the
+    /// training shapes (their covariance is singular).
+    pub fn fit(
+        training: &[Vec<f32>],
+        weights: Option<&[f32]>,
+        measured: &[[f64; BIOMARKERS]],
+        drawn: &[Vec<f32>],
+        faces: &[[u32; 3]],
+    ) -> Option<Self> {
+        let dim = training.first()?.len();
+        if training.len() < 3 || drawn.len() < 3 || drawn.iter().any(|d| d.len() != dim) {
+            return None;
+        }
+        let w: Vec<f64> = match weights {
+            Some(w) if w.len() == training.len() => {
+                w.iter().map(|&v| f64::from(v.max(0.0))).collect()
+            }
+            _ => vec![1.0; training.len()],
+        };
+        let total: f64 = w.iter().sum();
+        if total <= 0.0 {
+            return None;
+        }
+        let trained: Vec<_> = training.iter().map(|x| biomarkers(x, faces)).collect();
+        let (shape_mean, biased_cov, unbias) = moments(&trained, &w);
+        if !unbias.is_finite() {
+            return None;
+        }
+        let inverse = biased_cov.clone().try_inverse()?;
+        let targets = if measured.len() == training.len() {
+            measured
+        } else {
+            &trained
+        };
+        let (target_mean, target_cov, _) = moments(targets, &w);
+        let x_mean: Vec<f64> = (0..dim)
+            .map(|j| {
+                training
+                    .iter()
+                    .zip(&w)
+                    .map(|(x, w)| w * f64::from(x[j]))
+                    .sum::<f64>()
+                    / total
+            })
+            .collect();
+        // Regression coefficients: the cross-covariance of coordinates and biomarkers
+        // `[3·N_μ][2]` times the inverse biomarker covariance (both divided by the total weight).
+        let directions: Vec<Vec<f32>> = (0..BIOMARKERS)
+            .map(|b| {
+                (0..dim)
+                    .map(|j| {
+                        let cross = |k: usize| {
+                            training
+                                .iter()
+                                .zip(&trained)
+                                .zip(&w)
+                                .map(|((x, r), w)| {
+                                    w * (f64::from(x[j]) - x_mean[j]) * (r[k] - shape_mean[k])
+                                })
+                                .sum::<f64>()
+                                / total
+                        };
+                        let row = (0..BIOMARKERS).map(|k| cross(k) * inverse[(k, b)]);
+                        row.sum::<f64>() as f32
+                    })
+                    .collect()
+            })
+            .collect();
+        let drawn_rows: Vec<_> = drawn.iter().map(|x| biomarkers(x, faces)).collect();
+        let (drawn_mean, drawn_cov, drawn_unbias) = moments(&drawn_rows, &vec![1.0; drawn.len()]);
+        let map = transport_map(drawn_cov * drawn_unbias, &(target_cov * unbias));
+        Some(Self {
+            directions,
+            drawn_mean: [drawn_mean[0], drawn_mean[1]],
+            target_mean: [target_mean[0], target_mean[1]],
+            map: [[map[(0, 0)], map[(0, 1)]], [map[(1, 0)], map[(1, 1)]]],
+        })
+    }
+
+    /// Moves a drawn shape along the directions so that its biomarkers `b` become
+    /// `target_mean + map · (b − drawn_mean)` (to first order: the directions are a
+    /// regression, not an exact inverse); a shape of another width is left alone.
+    pub fn apply(&self, shape: &mut [f32], faces: &[[u32; 3]]) {
+        if self.directions.iter().any(|d| d.len() != shape.len()) {
+            return;
+        }
+        let b = biomarkers(shape, faces);
+        let deviation = [b[0] - self.drawn_mean[0], b[1] - self.drawn_mean[1]];
+        let step: Vec<f64> = (0..BIOMARKERS)
+            .map(|k| {
+                let calibrated = self.target_mean[k]
+                    + self.map[k][0] * deviation[0]
+                    + self.map[k][1] * deviation[1];
+                calibrated - b[k]
+            })
+            .collect();
+        for (j, x) in shape.iter_mut().enumerate() {
+            let moved: f64 = (0..BIOMARKERS)
+                .map(|k| step[k] * f64::from(self.directions[k][j]))
+                .sum();
+            *x = (f64::from(*x) + moved) as f32;
+        }
+    }
+}
+
+#[cfg(test)]
+#[path = "biomarker_calibration_tests.rs"]
+mod tests;

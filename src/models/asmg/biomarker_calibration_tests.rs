@@ -1,0 +1,168 @@
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+
+use super::*;
+
+/// Closed box `[a, b, c]` mm with a corner at `origin`: 8 vertices, 12 outward triangles.
+fn box_shape(sides: [f64; 3], origin: [f64; 3]) -> Vec<f32> {
+    (0..8)
+        .flat_map(|i| (0..3).map(move |k| (origin[k] + sides[k] * f64::from((i >> k) & 1)) as f32))
+        .collect()
+}
+
+fn box_faces() -> Vec<[u32; 3]> {
+    let corner = |i: u32| [i & 1, (i >> 1) & 1, (i >> 2) & 1].map(f64::from);
+    let mut faces = Vec::new();
+    for axis in 0..3 {
+        for side in 0..2_u32 {
+            let quad: Vec<u32> = (0..8).filter(|i| (i >> axis) & 1 == side).collect();
+            // `quad` is ordered by the bits of the other two axes: 0, 1, 3, 2 goes round.
+            for tri in [[quad[0], quad[1], quad[3]], [quad[0], quad[3], quad[2]]] {
+                let [p, q, r] = tri.map(corner);
+                let (u, v) = (
+                    [0, 1, 2].map(|k| q[k] - p[k]),
+                    [0, 1, 2].map(|k| r[k] - p[k]),
+                );
+                let normal_along_axis = [
+                    u[1] * v[2] - u[2] * v[1],
+                    u[2] * v[0] - u[0] * v[2],
+                    u[0] * v[1] - u[1] * v[0],
+                ][axis];
+                let outward = if side == 1 { 1.0 } else { -1.0 };
+                faces.push(if normal_along_axis * outward > 0.0 {
+                    tri
+                } else {
+                    [tri[0], tri[2], tri[1]]
+                });
+            }
+        }
+    }
+    faces
+}
+
+/// Boxes whose sides vary by `sd` mm around 10 mm, at random small offsets.
+fn boxes(count: usize, sd: f64, seed: u64) -> Vec<Vec<f32>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut normal = move || rng.sample::<f64, _>(StandardNormal);
+    (0..count)
+        .map(|_| {
+            let sides = [0; 3].map(|_| 10.0 + sd * normal());
+            let origin = [0; 3].map(|_| 0.5 * normal());
+            box_shape(sides, origin)
+        })
+        .collect()
+}
+
+fn mean_sd(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, var.sqrt())
+}
+
+fn column(shapes: &[Vec<f32>], faces: &[[u32; 3]], k: usize) -> Vec<f64> {
+    shapes.iter().map(|s| biomarkers(s, faces)[k]).collect()
+}
+
+#[test]
+fn a_box_measures_its_volume_and_area() {
+    let [volume, area] = biomarkers(
+        &box_shape([10.0, 20.0, 30.0], [5.0, -3.0, 2.0]),
+        &box_faces(),
+    );
+    assert!(
+        (volume - 6.0).abs() < 1e-9,
+        "6,000 mm³ = 6 ml, got {volume}"
+    );
+    assert!((area - 22.0).abs() < 1e-9, "2,200 mm² = 22 cm², got {area}");
+}
+
+#[test]
+fn narrow_draws_get_the_training_volume_and_area_spread() {
+    let faces = box_faces();
+    let training = boxes(200, 1.0, 1);
+    // Draws vary half as much and sit 0.3 mm small on every side.
+    let drawn: Vec<Vec<f32>> = boxes(400, 0.5, 2)
+        .into_iter()
+        .map(|s| s.iter().map(|x| x * 0.97).collect())
+        .collect();
+    let c = BiomarkerCalibration::fit(&training, None, &[], &drawn, &faces).expect("a calibration");
+    let calibrated: Vec<Vec<f32>> = drawn
+        .iter()
+        .map(|d| {
+            let mut d = d.clone();
+            c.apply(&mut d, &faces);
+            d
+        })
+        .collect();
+    for (k, name) in ["volume", "area"].iter().enumerate() {
+        let (train_mean, train_sd) = mean_sd(&column(&training, &faces, k));
+        let (drawn_mean, drawn_sd) = mean_sd(&column(&drawn, &faces, k));
+        let (mean, sd) = mean_sd(&column(&calibrated, &faces, k));
+        assert!(drawn_sd < 0.6 * train_sd, "{name}: the draws start narrow");
+        assert!(drawn_mean < 0.95 * train_mean, "{name}: and small");
+        assert!(
+            (mean / train_mean - 1.0).abs() < 0.01,
+            "{name} mean {mean} vs {train_mean}"
+        );
+        assert!(
+            (sd / train_sd - 1.0).abs() < 0.05,
+            "{name} sd {sd} vs {train_sd}"
+        );
+    }
+}
+
+#[test]
+fn a_shape_of_another_width_is_left_alone() {
+    let faces = box_faces();
+    let c = BiomarkerCalibration::fit(&boxes(20, 1.0, 3), None, &[], &boxes(20, 0.5, 4), &faces)
+        .unwrap();
+    let mut other = vec![1.0_f32; 9];
+    c.apply(&mut other, &faces);
+    assert_eq!(other, vec![1.0_f32; 9]);
+}
+
+#[test]
+fn training_shapes_of_one_volume_and_area_give_no_calibration() {
+    let faces = box_faces();
+    // The same box moved around: no biomarker varies, nothing to regress on.
+    let moved: Vec<Vec<f32>> = (0..10)
+        .map(|i| box_shape([10.0, 12.0, 14.0], [f64::from(i), 0.0, 0.0]))
+        .collect();
+    assert!(BiomarkerCalibration::fit(&moved, None, &[], &boxes(20, 0.5, 5), &faces).is_none());
+}
+
+#[test]
+fn draws_get_the_measured_biomarkers_of_the_training_meshes_when_given() {
+    let faces = box_faces();
+    let training = boxes(200, 1.0, 6);
+    // The meshes are 2% larger than their shapes on every side (6% in volume, 4% in area).
+    let measured: Vec<[f64; 2]> = training
+        .iter()
+        .map(|s| biomarkers(&s.iter().map(|x| 1.02 * x).collect::<Vec<_>>(), &faces))
+        .collect();
+    let drawn = boxes(400, 0.5, 7);
+    let c = BiomarkerCalibration::fit(&training, None, &measured, &drawn, &faces).unwrap();
+    let calibrated: Vec<Vec<f32>> = drawn
+        .iter()
+        .map(|d| {
+            let mut d = d.clone();
+            c.apply(&mut d, &faces);
+            d
+        })
+        .collect();
+    for k in 0..2 {
+        let targets: Vec<f64> = measured.iter().map(|r| r[k]).collect();
+        let ((target_mean, target_sd), (mean, sd)) =
+            (mean_sd(&targets), mean_sd(&column(&calibrated, &faces, k)));
+        assert!(
+            (mean / target_mean - 1.0).abs() < 0.01,
+            "{k}: mean {mean} vs {target_mean}"
+        );
+        assert!(
+            (sd / target_sd - 1.0).abs() < 0.05,
+            "{k}: sd {sd} vs {target_sd}"
+        );
+    }
+}
