@@ -14,7 +14,7 @@
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
-use super::calibration::transport_map;
+use super::calibration::{WeightedShapes, transport_map};
 use crate::mesh::Mesh;
 use crate::mesh::measures::{area_cm2, volume_ml};
 
@@ -88,20 +88,12 @@ impl BiomarkerCalibration {
         drawn: &[Vec<f32>],
         faces: &[[u32; 3]],
     ) -> Option<Self> {
-        let dim = training.first()?.len();
-        if training.len() < 3 || drawn.len() < 3 || drawn.iter().any(|d| d.len() != dim) {
-            return None;
-        }
-        let w: Vec<f64> = match weights {
-            Some(w) if w.len() == training.len() => {
-                w.iter().map(|&v| f64::from(v.max(0.0))).collect()
-            }
-            _ => vec![1.0; training.len()],
-        };
-        let total: f64 = w.iter().sum();
-        if total <= 0.0 {
-            return None;
-        }
+        let WeightedShapes {
+            w,
+            total,
+            mean: x_mean,
+        } = WeightedShapes::of(training, weights, drawn)?;
+        let dim = x_mean.len();
         let trained: Vec<_> = training.iter().map(|x| biomarkers(x, faces)).collect();
         let (shape_mean, biased_cov, unbias) = moments(&trained, &w);
         if !unbias.is_finite() {
@@ -114,16 +106,6 @@ impl BiomarkerCalibration {
             &trained
         };
         let (target_mean, target_cov, _) = moments(targets, &w);
-        let x_mean: Vec<f64> = (0..dim)
-            .map(|j| {
-                training
-                    .iter()
-                    .zip(&w)
-                    .map(|(x, w)| w * f64::from(x[j]))
-                    .sum::<f64>()
-                    / total
-            })
-            .collect();
         // Regression coefficients: the cross-covariance of coordinates and biomarkers
         // `[3·N_μ][2]` times the inverse biomarker covariance (both divided by the total weight).
         let directions: Vec<Vec<f32>> = (0..BIOMARKERS)

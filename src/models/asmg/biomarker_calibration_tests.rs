@@ -65,6 +65,18 @@ fn column(shapes: &[Vec<f32>], faces: &[[u32; 3]], k: usize) -> Vec<f64> {
     shapes.iter().map(|s| biomarkers(s, faces)[k]).collect()
 }
 
+/// The draws after calibration.
+fn calibrated(c: &BiomarkerCalibration, drawn: &[Vec<f32>], faces: &[[u32; 3]]) -> Vec<Vec<f32>> {
+    drawn
+        .iter()
+        .map(|d| {
+            let mut d = d.clone();
+            c.apply(&mut d, faces);
+            d
+        })
+        .collect()
+}
+
 #[test]
 fn a_box_measures_its_volume_and_area() {
     let [volume, area] = biomarkers(
@@ -88,14 +100,7 @@ fn narrow_draws_get_the_training_volume_and_area_spread() {
         .map(|s| s.iter().map(|x| x * 0.97).collect())
         .collect();
     let c = BiomarkerCalibration::fit(&training, None, &[], &drawn, &faces).expect("a calibration");
-    let calibrated: Vec<Vec<f32>> = drawn
-        .iter()
-        .map(|d| {
-            let mut d = d.clone();
-            c.apply(&mut d, &faces);
-            d
-        })
-        .collect();
+    let calibrated = calibrated(&c, &drawn, &faces);
     for (k, name) in ["volume", "area"].iter().enumerate() {
         let (train_mean, train_sd) = mean_sd(&column(&training, &faces, k));
         let (drawn_mean, drawn_sd) = mean_sd(&column(&drawn, &faces, k));
@@ -144,14 +149,7 @@ fn draws_get_the_measured_biomarkers_of_the_training_meshes_when_given() {
         .collect();
     let drawn = boxes(400, 0.5, 7);
     let c = BiomarkerCalibration::fit(&training, None, &measured, &drawn, &faces).unwrap();
-    let calibrated: Vec<Vec<f32>> = drawn
-        .iter()
-        .map(|d| {
-            let mut d = d.clone();
-            c.apply(&mut d, &faces);
-            d
-        })
-        .collect();
+    let calibrated = calibrated(&c, &drawn, &faces);
     for k in 0..2 {
         let targets: Vec<f64> = measured.iter().map(|r| r[k]).collect();
         let ((target_mean, target_sd), (mean, sd)) =

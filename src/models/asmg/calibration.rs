@@ -39,6 +39,52 @@ pub const CALIBRATED_VARIANCE: f64 = 0.95;
 /// training meshes'.
 pub const MAX_GAIN: f64 = 10.0;
 
+/// Weights and weighted mean of training shapes, shared by both calibrations.
+pub(super) struct WeightedShapes {
+    /// One non-negative weight a shape (all 1 when none were given).
+    pub w: Vec<f64>,
+    /// Sum of the weights.
+    pub total: f64,
+    /// Weighted mean shape, `[3·N_μ]` mm.
+    pub mean: Vec<f64>,
+}
+
+impl WeightedShapes {
+    /// `None` when there are fewer than three shapes or draws, a draw has another width
+    /// than the shapes, or the weights sum to zero.
+    pub(super) fn of(
+        training: &[Vec<f32>],
+        weights: Option<&[f32]>,
+        drawn: &[Vec<f32>],
+    ) -> Option<Self> {
+        let dim = training.first()?.len();
+        if training.len() < 3 || drawn.len() < 3 || drawn.iter().any(|d| d.len() != dim) {
+            return None;
+        }
+        let w: Vec<f64> = match weights {
+            Some(w) if w.len() == training.len() => {
+                w.iter().map(|&v| f64::from(v.max(0.0))).collect()
+            }
+            _ => vec![1.0; training.len()],
+        };
+        let total: f64 = w.iter().sum();
+        if total <= 0.0 {
+            return None;
+        }
+        let mean = (0..dim)
+            .map(|j| {
+                training
+                    .iter()
+                    .zip(&w)
+                    .map(|(x, w)| w * f64::from(x[j]))
+                    .sum::<f64>()
+                    / total
+            })
+            .collect();
+        Some(Self { w, total, mean })
+    }
+}
+
 /// Per-mode corrections of drawn shapes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SpreadCalibration {
@@ -71,30 +117,7 @@ impl SpreadCalibration {
     /// uncalibrated draws of the generator. `None` when there are too few shapes or draws
     /// to estimate a spread.
     pub fn fit(training: &[Vec<f32>], weights: Option<&[f32]>, drawn: &[Vec<f32>]) -> Option<Self> {
-        let dim = training.first()?.len();
-        if training.len() < 3 || drawn.len() < 3 || drawn.iter().any(|d| d.len() != dim) {
-            return None;
-        }
-        let w: Vec<f64> = match weights {
-            Some(w) if w.len() == training.len() => {
-                w.iter().map(|&v| f64::from(v.max(0.0))).collect()
-            }
-            _ => vec![1.0; training.len()],
-        };
-        let total: f64 = w.iter().sum();
-        if total <= 0.0 {
-            return None;
-        }
-        let mean: Vec<f64> = (0..dim)
-            .map(|j| {
-                training
-                    .iter()
-                    .zip(&w)
-                    .map(|(x, w)| w * f64::from(x[j]))
-                    .sum::<f64>()
-                    / total
-            })
-            .collect();
+        let WeightedShapes { w, total, mean } = WeightedShapes::of(training, weights, drawn)?;
         let (modes, variances, residual_variance) = principal_modes(training, &w, total, &mean)?;
         let mut calibration = Self {
             mean: mean.iter().map(|&v| v as f32).collect(),
