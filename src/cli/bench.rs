@@ -6,11 +6,12 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use super::bench_clusters::ClusterBench;
+use super::bench_conditional::bench_conditional;
 use super::bench_models::{BenchModel, ModelEntry, bench_models, parse_model_entry};
 use super::bench_privacy::held_out_privacy;
 use super::bench_report::{
-    BenchReport, BiomarkerDistance, CohortBench, ConditionalBench, FitBench, ModelBench,
-    ReferenceFidelity, RenderBench, SpecificityBench, VolumeFidelity, print_markdown,
+    BenchReport, BiomarkerDistance, CohortBench, FitBench, ModelBench, ReferenceFidelity,
+    RenderBench, SpecificityBench, VolumeFidelity, print_markdown,
 };
 use super::memory::{self, StepMemory};
 use super::progress::StderrProgress;
@@ -25,12 +26,10 @@ use crate::geometry::pca::Sampling;
 use crate::jobs::fit::fit_model;
 use crate::mesh::measures::volume_ml;
 use crate::mesh::{Mesh, phantom};
-use crate::models::cohort::{
-    CohortSpec, Criterion, TrainingIndex, sample_cohort, sample_cohort_given,
-};
+use crate::models::cohort::{CohortSpec, Criterion, TrainingIndex, sample_cohort};
 use crate::models::evaluation::evaluate;
-use crate::models::progress::{Silent, Stages};
-use crate::models::{ModelError, ReferencePopulation, ShapeModel};
+use crate::models::progress::Stages;
+use crate::models::{ModelError, ShapeModel};
 
 /// Added to the bench seed for the fresh phantoms of the fidelity check, so that they are
 /// not the training or test subjects.
@@ -409,60 +408,5 @@ fn time_render(mesh: &Mesh) -> RenderBench {
     RenderBench {
         vertices: mesh.vertex_count(),
         ms_per_view: 1e3 * started.elapsed().as_secs_f64() / View::ALL.len() as f64,
-    }
-}
-
-/// The interval target the conditional cohort of the bench asks for, ml.
-pub const BENCH_VOLUME_TARGET: (f64, f64) = (120.0, 160.0);
-
-/// A cohort of the same size whose volume is conditioned on [`BENCH_VOLUME_TARGET`].
-fn bench_conditional<M: ShapeModel + Sync + ?Sized>(
-    model: &M,
-    reference: &ReferencePopulation,
-    normalised: &[Vec<Vec<[f64; 3]>>],
-    privacy: &[crate::eval::privacy::PrivacyThreshold],
-    spec: &CohortSpec,
-    plain: &[crate::models::cohort::Member],
-) -> ConditionalBench {
-    use crate::models::conditional::{Conditional, Target};
-    let (min, max) = BENCH_VOLUME_TARGET;
-    let targets = [(
-        "volume_ml".to_owned(),
-        Target::Interval {
-            min: Some(min),
-            max: Some(max),
-        },
-    )];
-    let spec = CohortSpec {
-        max_draws: 20 * spec.size,
-        ..*spec
-    };
-    let started = Instant::now();
-    let drawn = Conditional::new(model, &targets, spec.seed).and_then(|c| {
-        let index = TrainingIndex::new(normalised, privacy)?;
-        sample_cohort_given(model, reference, &index, &spec, Some(&c), &mut Silent)
-    });
-    let mean_area = |m: &[crate::models::cohort::Member]| {
-        m.iter().map(|m| m.biomarkers.area_cm2).sum::<f64>() / m.len().max(1) as f64
-    };
-    match drawn {
-        Ok((members, report)) => ConditionalBench {
-            seconds: started.elapsed().as_secs_f64(),
-            inside: members
-                .iter()
-                .filter(|m| (min..=max).contains(&m.biomarkers.volume_ml))
-                .count() as f64
-                / members.len().max(1) as f64,
-            draws_per_member: report.draws as f64 / members.len().max(1) as f64,
-            area_cm2: Some((mean_area(plain), mean_area(&members))),
-            error: None,
-        },
-        Err(e) => ConditionalBench {
-            seconds: started.elapsed().as_secs_f64(),
-            inside: 0.0,
-            draws_per_member: f64::NAN,
-            area_cm2: None,
-            error: Some(e.to_string()),
-        },
     }
 }

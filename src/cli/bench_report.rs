@@ -128,9 +128,11 @@ pub struct RenderBench {
     pub ms_per_view: f64,
 }
 
-/// A conditional cohort (volume in [`BENCH_VOLUME_TARGET`](super::bench::BENCH_VOLUME_TARGET)).
+/// A conditional cohort (volume in [`bench_volume_target`](super::bench_conditional::bench_volume_target)).
 #[derive(Debug, Serialize)]
 pub struct ConditionalBench {
+    /// The volume interval asked for, ml.
+    pub target_ml: (f64, f64),
     /// Wall-clock seconds, pilot draws included.
     pub seconds: f64,
     /// Share of members inside the interval.
@@ -287,7 +289,13 @@ fn cohort_table(report: &BenchReport) -> String {
             }),
         ),
         row(
-            "volume in [120, 160] ml: inside / draws per member",
+            &models.first().map_or_else(
+                || "conditioned on volume: inside / draws per member".to_owned(),
+                |m| {
+                    let (min, max) = m.cohort.conditional.target_ml;
+                    format!("volume in [{min:.0}, {max:.0}] ml: inside / draws per member")
+                },
+            ),
             models.iter().map(|m| {
                 let c = &m.cohort.conditional;
                 match &c.error {

@@ -3,6 +3,7 @@
 
 pub mod bench;
 mod bench_clusters;
+pub mod bench_conditional;
 mod bench_fidelity;
 pub mod bench_models;
 pub mod bench_privacy;

@@ -4,14 +4,15 @@
 //! (defaults rsmp, 100, 1, 1000): fits the model to LV phantoms and compares the six
 //! biomarkers of the training shapes as the model reproduces them (what members are compared
 //! with for privacy) and of its draws with those of the training meshes: mean and sd ratios,
-//! joint A^μ, and the Mahalanobis distance of each shape's biomarkers from the training mean
+//! joint A^μ (and each biomarker's A^μ), and the Mahalanobis distance of each shape's biomarkers from the training mean
 //! (which sees a combination no patient has, such as a long axis too long for the volume,
 //! where each biomarker alone is inside its interval). `PARAMS='{"beta": 30}'` sets the
 //! model's parameters (JSON, as a fit request's `params`); for ASMG models,
 //! `TEMPERATURES=1.2,1.5` adds draws whose standard latent coordinates are scaled by each,
 //! and `VOLUME_STRETCH=0.95` those draws moved along the training shapes' regression on
-//! volume (and on volume and area) until their volume sd (and volume–area covariance) is
-//! that share of the training meshes'.
+//! volume (and on volume and area, and on all six) until their volume sd (and the covariance
+//! of those biomarkers) is that share of the training meshes', and the volume-and-area ones
+//! then matched rank for rank to a smoothed density of the training meshes' volume and area.
 
 use cohortforge::eval::biomarkers::{Biomarkers, ExtentAxes};
 use cohortforge::eval::stats;
@@ -26,7 +27,10 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
-fn row(mesh: &Mesh) -> [f64; 6] {
+mod stretch;
+use stretch::{biomarker_stretched, quantile_matched};
+
+pub(crate) fn row(mesh: &Mesh) -> [f64; 6] {
     let b = Biomarkers::measure(mesh, ExtentAxes::Surface).expect("biomarkers");
     [
         b.volume_ml.abs(),
@@ -104,6 +108,17 @@ fn main() {
     reference.print("training meshes", &meshes, None);
     reference.print("reproduced", &reproduced, Some(&mean_axis));
     reference.print("draws", &drawn, Some(&mean_axis));
+    // Draws no farther from the training mean, in biomarker space, than the farthest mesh.
+    let farthest = meshes
+        .iter()
+        .map(|m| reference.radius(&row(m)))
+        .fold(0.0, f64::max);
+    let within: Vec<Mesh> = drawn
+        .iter()
+        .filter(|m| reference.radius(&row(m)) <= farthest)
+        .cloned()
+        .collect();
+    reference.print("  within", &within, Some(&mean_axis));
     if let Some(asmg) = stored.model.as_any().downcast_ref::<AsmgModel>() {
         for t in temperatures() {
             let tempered = tempered_draws(asmg, t, draws, seed);
@@ -116,6 +131,16 @@ fn main() {
                 reference.print("  volume-stretched", &stretched, Some(&mean_axis));
                 let both = biomarker_stretched(&reproduced, &tempered, &meshes, share, &[0, 1]);
                 reference.print("  volume+area-stretched", &both, Some(&mean_axis));
+                let all = biomarker_stretched(
+                    &reproduced,
+                    &tempered,
+                    &meshes,
+                    share,
+                    &[0, 1, 2, 3, 4, 5],
+                );
+                reference.print("  all-six-stretched", &all, Some(&mean_axis));
+                let matched = quantile_matched(&reproduced, &both, &meshes, &[0, 1]);
+                reference.print("  +quantile-matched", &matched, Some(&mean_axis));
             }
         }
     }
@@ -180,67 +205,7 @@ fn tempered_draws(asmg: &AsmgModel, t: f32, draws: usize, seed: u64) -> Vec<Mesh
     asmg.decode(&codes).unwrap()
 }
 
-/// `shapes` moved along the training shapes' regression on the biomarkers `columns` (of
-/// [`row`]) so that those biomarkers' covariance becomes `share`² times the training meshes'.
-fn biomarker_stretched(
-    training: &[Mesh],
-    shapes: &[Mesh],
-    meshes: &[Mesh],
-    share: f64,
-    columns: &[usize],
-) -> Vec<Mesh> {
-    let k = columns.len();
-    let pick = |m: &Mesh| {
-        let r = row(m);
-        DVector::from_iterator(k, columns.iter().map(|&c| r[c]))
-    };
-    let centred = |rows: &[DVector<f64>]| {
-        let mean = rows.iter().fold(DVector::zeros(k), |s, r| s + r) / rows.len() as f64;
-        let cov = rows.iter().fold(DMatrix::zeros(k, k), |s, r| {
-            s + (r - &mean) * (r - &mean).transpose()
-        }) / (rows.len() as f64 - 1.0);
-        (mean, cov)
-    };
-    let b_train: Vec<DVector<f64>> = training.iter().map(pick).collect();
-    let (b_mean, b_cov) = centred(&b_train);
-    let n = vertex_count(training) * 3;
-    let x = |m: &Mesh| DVector::from_iterator(n, m.vertices.iter().flat_map(|p| *p));
-    let x_mean = training.iter().fold(DVector::zeros(n), |s, m| s + x(m)) / training.len() as f64;
-    let cross = training
-        .iter()
-        .zip(&b_train)
-        .fold(DMatrix::zeros(n, k), |s, (m, b)| {
-            s + (x(m) - &x_mean) * (b - &b_mean).transpose()
-        })
-        / (training.len() as f64 - 1.0);
-    let direction = cross * b_cov.try_inverse().unwrap();
-    let (_, target) = centred(&meshes.iter().map(pick).collect::<Vec<_>>());
-    let b_drawn: Vec<DVector<f64>> = shapes.iter().map(pick).collect();
-    let (d_mean, d_cov) = centred(&b_drawn);
-    let sqrt = |m: &DMatrix<f64>, power: f64| {
-        let e = m.clone().symmetric_eigen();
-        let d = DMatrix::from_diagonal(&e.eigenvalues.map(|v| v.powf(power)));
-        &e.eigenvectors * d * e.eigenvectors.transpose()
-    };
-    let map = sqrt(&(target * share * share), 0.5) * sqrt(&d_cov, -0.5);
-    shapes
-        .iter()
-        .zip(&b_drawn)
-        .map(|(m, b)| {
-            let deviation = b - &d_mean;
-            let step = &direction * (&map * &deviation - &deviation);
-            let moved = x(m) + step;
-            let vertices = moved
-                .as_slice()
-                .chunks_exact(3)
-                .map(|p| [p[0], p[1], p[2]])
-                .collect();
-            Mesh::new(vertices, m.faces.clone())
-        })
-        .collect()
-}
-
-fn vertex_count(meshes: &[Mesh]) -> usize {
+pub(crate) fn vertex_count(meshes: &[Mesh]) -> usize {
     meshes.first().map_or(0, |m| m.vertices.len())
 }
 
@@ -313,6 +278,16 @@ impl Reference {
             .iter()
             .filter(|r| (0..6).all(|j| (r[j] - self.mean[j]).abs() <= 2.0 * self.sd[j]))
             .count() as f64;
+        let per_biomarker = (0..6)
+            .map(|j| {
+                let kept = rows
+                    .iter()
+                    .filter(|r| (r[j] - self.mean[j]).abs() <= 2.0 * self.sd[j])
+                    .count() as f64;
+                format!("{:.1}", 100.0 * kept / n)
+            })
+            .collect::<Vec<_>>()
+            .join(" ");
         let radii = stats::sorted(&rows.iter().map(|r| self.radius(r)).collect::<Vec<_>>());
         let tilt = mean_axis.map_or_else(
             || "-".to_owned(),
@@ -332,7 +307,7 @@ impl Reference {
         );
         println!(
             "{stage:15} n {:4}  joint A^mu {:5.1}%  mean {}  sd {}  radius mean {:.2}, 95th \
-             {:.2}  tilt {tilt}",
+             {:.2}  tilt {tilt}  A^mu each {per_biomarker}",
             rows.len(),
             100.0 * inside / n,
             ratios(&stats::mean, &self.mean),
