@@ -17,7 +17,8 @@ use cohortforge::mesh::codec;
 use cohortforge::mesh::measures::volume_ml;
 use cohortforge::mesh::phantom::{self, Family};
 use cohortforge::models::alignment::median_resolution_index;
-use cohortforge::models::asmg::model::{align, embed_mesh, embeddings_of, flatten_f32, simplified};
+use cohortforge::models::alignment::simplified;
+use cohortforge::models::asmg::model::{align, embed_mesh, embeddings_of, flatten_f32};
 use cohortforge::models::asmg::{
     AsmgParams, AtlasInit, Embeddings, ShapeInput, Smoother, Temperature, correspond,
     initial_atlas, learn_atlas,

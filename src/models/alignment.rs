@@ -12,6 +12,21 @@ use crate::geometry::kdtree::PointCloudIndex;
 use crate::geometry::points::{centroid, mat_vec, rms_radius, sub};
 use crate::geometry::{GeometryError, RigidTransform, axis_permutation_rotations};
 use crate::mesh::Mesh;
+use crate::mesh::simplify::simplify;
+use crate::models::ModelError;
+
+/// Default vertex budget of a mesh before it is registered (and, for the ASMG family, before
+/// the graph network sees it): larger meshes are simplified first.
+pub const DEFAULT_MAX_VERTICES: usize = 3000;
+/// Largest vertex budget accepted (the kidneys of KiTS19 have up to 25,800 vertices).
+pub const MAX_VERTICES_LIMIT: usize = 30_000;
+
+/// A mesh simplified to at most `max_vertices` vertices (unchanged when it has fewer).
+pub fn simplified(mesh: &Mesh, max_vertices: usize) -> Result<Mesh, ModelError> {
+    simplify(mesh, max_vertices)
+        .map(|s| s.mesh)
+        .map_err(|e| ModelError::InvalidInput(format!("simplification failed: {e}")))
+}
 
 /// Settings of the registration.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

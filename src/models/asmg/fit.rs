@@ -7,13 +7,11 @@ use super::biomarker_calibration::mesh_biomarkers;
 use super::embeddings::Embeddings;
 use super::init::{AtlasInit, initial_atlas};
 use super::learn::{LearnedAtlas, ShapeInput, learn_atlas};
-use super::model::{
-    AsmgModel, NetworkSizes, align, embed_mesh, embeddings_of, nn_error, simplified,
-};
+use super::model::{AsmgModel, NetworkSizes, align, embed_mesh, embeddings_of, nn_error};
 use super::monitor::StageMonitor;
 use super::params::{AsmgParams, AtlasChoice};
 use crate::mesh::Mesh;
-use crate::models::alignment::median_resolution_index;
+use crate::models::alignment::{median_resolution_index, simplified};
 use crate::models::progress::{Progress, Stages};
 use crate::models::workers::map_items;
 use crate::models::{FitInput, FittedParts, LossCurve, ModelError};

@@ -24,8 +24,7 @@ use super::smoothing::Smoother;
 use crate::geometry::cpd::NonRigidParams;
 use crate::geometry::pca::Sampling;
 use crate::mesh::Mesh;
-use crate::mesh::simplify::simplify;
-use crate::models::alignment::{self, AlignmentParams};
+use crate::models::alignment::{self, AlignmentParams, simplified};
 use crate::models::stored::{FittedModel, encode_named};
 use crate::models::{Draw, ModelError, Reconstruction, ShapeModel, StandardLatent, check_cluster};
 use crate::nn::{
@@ -152,13 +151,6 @@ pub(crate) fn nn_error(e: NnError) -> ModelError {
         NnError::Weights(_) => ModelError::Corrupt(e.to_string()),
         other => ModelError::InvalidInput(other.to_string()),
     }
-}
-
-/// A mesh simplified to at most `max_vertices` vertices (unchanged when it has fewer).
-pub fn simplified(mesh: &Mesh, max_vertices: usize) -> Result<Mesh, ModelError> {
-    simplify(mesh, max_vertices)
-        .map(|s| s.mesh)
-        .map_err(|e| ModelError::InvalidInput(format!("simplification failed: {e}")))
 }
 
 /// A mesh registered rigidly to `reference`: the simplified mesh in the model frame (for the

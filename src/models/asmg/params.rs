@@ -14,8 +14,7 @@ use crate::models::ModelError;
 use crate::models::alignment::AlignmentParams;
 use crate::nn::Features;
 
-/// Default vertex budget of a mesh before the graph network sees it.
-pub const DEFAULT_MAX_VERTICES: usize = 3000;
+pub use crate::models::alignment::{DEFAULT_MAX_VERTICES, MAX_VERTICES_LIMIT};
 /// Default latent width `L` of the generator (thesis fig. 4.13).
 pub const DEFAULT_LATENT_DIM: usize = 16;
 /// Default epochs of the graph VAE Ψ. Chosen by matching quality within the time budget (a
@@ -47,8 +46,6 @@ pub const DEFAULT_W_NORM: f64 = 1e-2;
 /// own budget); fewer than RSMP's 100 because the attention absorbs small residual
 /// misalignment, and the pre-alignment took 29% of a 100-phantom fit.
 pub const DEFAULT_CPD_MAX_ITERATIONS: usize = 40;
-/// Largest vertex budget accepted (the kidneys of KiTS19 have up to 25,800 vertices).
-pub const MAX_VERTICES_LIMIT: usize = 30_000;
 /// Largest epoch count accepted for either network.
 pub const MAX_EPOCHS: usize = 10_000;
 /// Largest latent width accepted.

@@ -2,10 +2,10 @@
 
 use super::*;
 use crate::mesh::phantom::{self, Family};
+use crate::models::alignment::simplified;
 use crate::models::asmg::AsmgParams;
 use crate::models::asmg::Smoother;
 use crate::models::asmg::fit::align_training;
-use crate::models::asmg::model::simplified;
 use crate::models::progress::Silent;
 use crate::nn::{GraphVaeConfig, GraphVaeTraining, Unmonitored, train_graph_vae};
 

@@ -3,8 +3,9 @@
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::cpd::{NonRigidParams, RigidCpdParams};
+use crate::mesh::simplify::MIN_TARGET_VERTICES;
 use crate::models::ModelError;
-use crate::models::alignment::AlignmentParams;
+use crate::models::alignment::{AlignmentParams, DEFAULT_MAX_VERTICES, MAX_VERTICES_LIMIT};
 
 /// Default share of variance the kept modes explain.
 pub const DEFAULT_VARIANCE_TARGET: f64 = 0.95;
@@ -52,6 +53,11 @@ pub struct RsmpParams {
     /// Procrustes, in correspondence) before the PCA, so that no mode is spent on what the
     /// registration left of each mesh's pose; reconstructions are aligned the same way.
     pub procrustes: bool,
+    /// Vertex budget of the registration: a template with more vertices is simplified to
+    /// about this many (its simplified surface is then the connectivity of every output),
+    /// and of a mesh with more, every k-th vertex is registered so that about this many
+    /// remain. CPD's cost grows with the product of the two vertex counts.
+    pub max_vertices: usize,
 }
 
 impl Default for RsmpParams {
@@ -71,6 +77,7 @@ impl Default for RsmpParams {
             nonrigid_lambda: NonRigidParams::default().lambda,
             draw_smoothing_steps: DEFAULT_DRAW_SMOOTHING_STEPS,
             procrustes: true,
+            max_vertices: DEFAULT_MAX_VERTICES,
         }
     }
 }
@@ -120,6 +127,15 @@ impl RsmpParams {
             return Err(ModelError::invalid(
                 "draw_smoothing_steps",
                 format!("must be at most {MAX_DRAW_SMOOTHING_STEPS}"),
+            ));
+        }
+        if !(MIN_TARGET_VERTICES..=MAX_VERTICES_LIMIT).contains(&self.max_vertices) {
+            return Err(ModelError::invalid(
+                "max_vertices",
+                format!(
+                    "must be between {MIN_TARGET_VERTICES} and {MAX_VERTICES_LIMIT}, got {}",
+                    self.max_vertices
+                ),
             ));
         }
         Ok(CheckedRsmpParams(self))

@@ -1,7 +1,24 @@
 use super::*;
 use crate::mesh::phantom::{self, Family};
 use crate::models::progress::Silent;
-use crate::models::{ModelType, StoredModel};
+use crate::models::{FitOutcome, ModelType, StoredModel};
+
+/// An RSMP model of `training` (seed 1, no held-out meshes) with `params` (JSON as a fit
+/// request's).
+pub(crate) fn fitted_rsmp(training: &[Mesh], params: serde_json::Value) -> FitOutcome {
+    let input = FitInput {
+        training,
+        holdout: &[],
+        template_indices: &[],
+        seed: 1,
+    };
+    ModelType::parse_name("rsmp")
+        .unwrap()
+        .parse_params(&params)
+        .unwrap()
+        .fit(&input, &mut Silent)
+        .unwrap()
+}
 
 #[test]
 fn fit_samples_and_reconstructs_phantoms() {
@@ -129,8 +146,47 @@ fn fit_samples_and_reconstructs_phantoms() {
         .unwrap()
         .remove("draw_smoothing_steps");
     stored.as_object_mut().unwrap().remove("procrustes");
+    stored.as_object_mut().unwrap().remove("max_vertices");
     let old: RsmpModel = serde_json::from_value(stored).unwrap();
     assert_eq!(old.draw_smoothing_steps, 0);
     assert!(!old.procrustes);
+    // ... and registers every vertex of a mesh, as it did.
+    assert_eq!(old.max_vertices, usize::MAX);
     assert_eq!(draw(&old), unsmoothed);
+}
+
+#[test]
+fn meshes_above_the_vertex_budget_are_registered_simplified() {
+    let meshes: Vec<Mesh> = phantom::generate(Family::Lv, 7, 4)
+        .into_iter()
+        .map(|p| p.mesh)
+        .collect();
+    let budget = 600;
+    assert!(meshes.iter().all(|m| m.vertex_count() > budget));
+    let (training, holdout) = meshes.split_at(6);
+    let outcome = fitted_rsmp(training, serde_json::json!({ "max_vertices": budget }));
+    let model: &RsmpModel = outcome.model.downcast().expect("an rsmp model");
+    // The template, and so every output, has the simplified surface (about the budget).
+    let n = model.template.vertex_count();
+    assert!(n <= budget + budget / 10 && n > budget / 2, "{n} vertices");
+    assert_eq!(model.max_vertices, budget);
+    // A held-out mesh above the budget: its normalised shape keeps the wall volume, and
+    // every one of its vertices comes back in the template frame for the distances.
+    let mesh = &holdout[0];
+    let reconstruction = model.reconstruct(mesh).unwrap();
+    assert_eq!(reconstruction.aligned_input.len(), mesh.vertex_count());
+    let shape = Mesh::new(reconstruction.normalised, model.template.faces.clone());
+    let (kept, truth) = (
+        crate::mesh::measures::volume_ml(&shape),
+        crate::mesh::measures::volume_ml(mesh),
+    );
+    assert!(
+        (kept / truth - 1.0).abs() < 0.05,
+        "{kept:.1} of {truth:.1} ml"
+    );
+    // A budget below what a surface can be simplified to is refused by name.
+    let refused = ModelType::parse_name("rsmp")
+        .unwrap()
+        .parse_params(&serde_json::json!({ "max_vertices": 3 }));
+    assert!(refused.unwrap_err().to_string().contains("max_vertices"));
 }
