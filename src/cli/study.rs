@@ -209,6 +209,9 @@ fn fidelity_markdown(f: &crate::models::spread::FidelitySummary) -> String {
     if let Some(sentence) = f.acceptance_sentence() {
         out.push_str(&format!("\n{sentence}.\n"));
     }
+    if let Some(warning) = f.near_copy_sentence() {
+        out.push_str(&format!("\n{warning}.\n"));
+    }
     if let Some(note) = &f.population_note {
         out.push_str(&format!("\nSmall population: {note}.\n"));
     }

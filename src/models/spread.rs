@@ -12,10 +12,15 @@ use crate::eval::fidelity::Spread;
 use crate::eval::gaussian_reference::{
     GAUSSIAN_REFERENCE_DRAWS, distance_quantile, gaussian_joint_acceptance,
 };
+use crate::eval::privacy::DEFAULT_PERCENTILE;
 use crate::geometry::pca::Sampling;
 
 /// Members of the cohort drawn to judge a fit's spread.
 pub const FIDELITY_MEMBERS: usize = 1000;
+
+/// Share of near copies above which a fit's summary warns that its generator hands
+/// training shapes back (twice the share a model of new patients has).
+pub const NEAR_COPY_WARNING: f64 = 2.0 * DEFAULT_PERCENTILE;
 
 /// Added to the fit seed for the fidelity cohort, so that it differs from other draws.
 const FIDELITY_SEED_OFFSET: u64 = 0xf1de_1175;
@@ -78,6 +83,27 @@ impl FidelitySummary {
             100.0 * cohort,
             100.0 * gaussian
         ))
+    }
+
+    /// A warning when the cohort hands patients back: more than [`NEAR_COPY_WARNING`] of its
+    /// members are near copies, where a model whose members are new patients flags about the
+    /// threshold's percentile (5%). None otherwise.
+    pub fn near_copy_sentence(&self) -> Option<String> {
+        let share = self.near_copies as f64 / self.members.max(1) as f64;
+        (share > NEAR_COPY_WARNING).then(|| {
+            format!(
+                "{} of the {} members ({:.1}%) are near copies of a training patient, where a \
+                 model whose members are new patients has about {:.0}%: the generator hands \
+                 training shapes back. Ask for cohorts with exclude_near_copies (near copies \
+                 are drawn again), or fit on more meshes or with a model type whose near \
+                 copies stay near {:.0}%",
+                self.near_copies,
+                self.members,
+                100.0 * share,
+                100.0 * DEFAULT_PERCENTILE,
+                100.0 * DEFAULT_PERCENTILE
+            )
+        })
     }
 
     /// The members' joint distance from the training mean beside the training meshes', in
@@ -225,8 +251,19 @@ mod tests {
             sentence.contains(&format!("{:.1}", d.members_p95)),
             "{sentence}"
         );
-        // Every member 30% larger: each biomarker far out, and jointly farther still.
-        let larger = summary(&meshes, 1.3).biomarker_distance.unwrap();
+        // Members that are the patients: every one a near copy, and the summary says so.
+        assert_eq!(f.near_copies, f.members);
+        let warning = f.near_copy_sentence().expect("a warning");
+        assert!(
+            warning.starts_with("1000 of the 1000 members (100.0%)"),
+            "{warning}"
+        );
+        // Every member 30% larger: each biomarker far out, and jointly farther still; no
+        // member is anyone's copy.
+        let larger_summary = summary(&meshes, 1.3);
+        assert_eq!(larger_summary.near_copies, 0);
+        assert!(larger_summary.near_copy_sentence().is_none());
+        let larger = larger_summary.biomarker_distance.unwrap();
         assert!(larger.members_p95 > 3.0 * d.training_p95, "{larger:?}");
         assert_eq!(larger.training_p95, d.training_p95);
     }

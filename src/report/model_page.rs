@@ -97,6 +97,9 @@ fn fidelity_section(s: &ModelSummary) -> String {
     {
         let _ = write!(out, "<p>{}.</p>", escape(&sentence));
     }
+    if let Some(warning) = f.near_copy_sentence() {
+        let _ = write!(out, "<p class=\"note\">{}.</p>", escape(&warning));
+    }
     if let Some(note) = &f.population_note {
         let _ = write!(
             out,
