@@ -80,7 +80,7 @@ pub fn held_out_privacy<M: ShapeModel + Sync + ?Sized>(
 mod tests {
     use super::*;
     use crate::mesh::phantom::{self, Family};
-    use crate::models::rsmp::tests::fitted_rsmp;
+    use crate::models::test_fits::fitted;
 
     #[test]
     fn a_training_patient_comes_back_flagged_and_a_new_one_is_measured() {
@@ -89,7 +89,7 @@ mod tests {
             .map(|p| p.mesh)
             .collect();
         let (training, holdout) = meshes.split_at(6);
-        let outcome = fitted_rsmp(training, serde_json::Value::Null);
+        let outcome = fitted("rsmp", training, serde_json::Value::Null);
         let stored = &outcome.model;
         let normalised = stored.training.normalised_f64();
         // A training patient sent in again, and two patients the model has not seen.

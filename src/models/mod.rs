@@ -27,6 +27,8 @@ pub mod shape_modes;
 pub mod spread;
 pub mod stored;
 mod targets_report;
+#[cfg(test)]
+pub(crate) mod test_fits;
 pub mod workers;
 
 use rand_chacha::ChaCha8Rng;

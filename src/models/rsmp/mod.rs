@@ -365,4 +365,4 @@ fn fit(
 }
 
 #[cfg(test)]
-pub(crate) mod tests;
+mod tests;

@@ -1,24 +1,8 @@
 use super::*;
 use crate::mesh::phantom::{self, Family};
 use crate::models::progress::Silent;
-use crate::models::{FitOutcome, ModelType, StoredModel};
-
-/// An RSMP model of `training` (seed 1, no held-out meshes) with `params` (JSON as a fit
-/// request's).
-pub(crate) fn fitted_rsmp(training: &[Mesh], params: serde_json::Value) -> FitOutcome {
-    let input = FitInput {
-        training,
-        holdout: &[],
-        template_indices: &[],
-        seed: 1,
-    };
-    ModelType::parse_name("rsmp")
-        .unwrap()
-        .parse_params(&params)
-        .unwrap()
-        .fit(&input, &mut Silent)
-        .unwrap()
-}
+use crate::models::test_fits::fitted;
+use crate::models::{ModelType, StoredModel};
 
 #[test]
 fn fit_samples_and_reconstructs_phantoms() {
@@ -164,7 +148,11 @@ fn meshes_above_the_vertex_budget_are_registered_simplified() {
     let budget = 600;
     assert!(meshes.iter().all(|m| m.vertex_count() > budget));
     let (training, holdout) = meshes.split_at(6);
-    let outcome = fitted_rsmp(training, serde_json::json!({ "max_vertices": budget }));
+    let outcome = fitted(
+        "rsmp",
+        training,
+        serde_json::json!({ "max_vertices": budget }),
+    );
     let model: &RsmpModel = outcome.model.downcast().expect("an rsmp model");
     // The template, and so every output, has the simplified surface (about the budget).
     let n = model.template.vertex_count();
