@@ -1,7 +1,8 @@
 //! Where a model's members leave the training population in biomarker space.
 //!
 //! `cargo run --release --example biomarker_stages -- [model] [meshes] [seed] [draws]`
-//! (defaults rsmp, 100, 1, 1000): fits the model to LV phantoms and compares the six
+//! (defaults rsmp, 100, 1, 1000): fits the model to LV phantoms (or to the meshes of the
+//! directory `MESHES`) and compares the six
 //! biomarkers of the training shapes as the model reproduces them (what members are compared
 //! with for privacy) and of its draws with those of the training meshes: mean and sd ratios,
 //! joint A^μ (and each biomarker's A^μ), and the Mahalanobis distance of each shape's biomarkers from the training mean
@@ -14,6 +15,7 @@
 //! of those biomarkers) is that share of the training meshes', and the volume-and-area ones
 //! then matched rank for rank to a smoothed density of the training meshes' volume and area.
 
+use cohortforge::cli::mesh_dir::read_mesh_dir;
 use cohortforge::eval::biomarkers::{Biomarkers, ExtentAxes};
 use cohortforge::eval::stats;
 use cohortforge::mesh::Mesh;
@@ -48,10 +50,19 @@ fn main() {
     let count: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(100);
     let seed: u64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(1);
     let draws: usize = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(1000);
-    let meshes: Vec<Mesh> = phantom::generate(Family::Lv, count, seed)
-        .into_iter()
-        .map(|p| p.mesh)
-        .collect();
+    // MESHES=DIR: the meshes of a directory (the first `count`, by name) instead of phantoms.
+    let meshes: Vec<Mesh> = match std::env::var("MESHES") {
+        Ok(dir) => read_mesh_dir(std::path::Path::new(&dir))
+            .expect("a directory of meshes")
+            .into_iter()
+            .take(count)
+            .map(|m| m.mesh)
+            .collect(),
+        Err(_) => phantom::generate(Family::Lv, count, seed)
+            .into_iter()
+            .map(|p| p.mesh)
+            .collect(),
+    };
     let input = FitInput {
         training: &meshes,
         holdout: &[],
@@ -100,9 +111,10 @@ fn main() {
     );
     let (_, mean_axis) = major_axis(&mean_shape);
     println!(
-        "{model}, {count} LV phantoms (seed {seed}); ratios to the training meshes for \
+        "{model}, {} meshes (seed {seed}); ratios to the training meshes for \
          volume, area, sphericity, major, middle, minor extent; tilt: angle of a shape's long \
-         axis to that of the mean reproduced shape"
+         axis to that of the mean reproduced shape",
+        meshes.len()
     );
     // The training meshes keep their own poses: no tilt for them.
     reference.print("training meshes", &meshes, None);
