@@ -105,32 +105,32 @@ impl RsmpModel {
 
     /// Registers `mesh` to the template: its normalised shape and its vertices in the
     /// template frame (mm).
+    ///
     /// Of a mesh above the vertex budget, every k-th vertex is registered and read for the
     /// correspondences (a sample with the mesh's own point density: simplified surfaces
     /// crowd their vertices where the curvature is high, which pulled the correspondences
     /// of LV phantoms' walls outwards, +9–12% wall volume); the returned vertices are all
     /// of the mesh's.
     fn normalise(&self, mesh: &Mesh) -> Result<NormalisedInput, ModelError> {
-        let points = if mesh.vertex_count() > self.max_vertices {
-            alignment::subsample(&mesh.vertices, self.max_vertices)
-        } else {
-            mesh.vertices.clone()
-        };
+        // Every vertex when the mesh is within the budget.
+        let points = alignment::subsample(&mesh.vertices, self.max_vertices);
         let cpd = alignment::register(&self.template.vertices, &points, &self.alignment)?;
-        let to_template = |v: &[[f64; 3]]| -> Vec<[f64; 3]> {
-            v.iter().map(|p| cpd.transform.inverse_apply(*p)).collect()
-        };
+        let aligned: Vec<[f64; 3]> = mesh
+            .vertices
+            .iter()
+            .map(|p| cpd.transform.inverse_apply(*p))
+            .collect();
         let h = match &self.nonrigid {
             Some(params) => {
                 // σ² of the rigid fit is in the data frame; the template frame is 1/s smaller.
                 let sigma2 = cpd.sigma2 / cpd.transform.scale.powi(2);
-                let moved = to_template(&points);
+                // The same stride over the moved vertices gives the moved sample.
+                let moved = alignment::subsample(&aligned, self.max_vertices);
                 let refined = nonrigid_cpd(&self.template.vertices, &moved, params, sigma2)?;
                 refined_correspondences(&refined)
             }
             None => normalised_shape(&self.template.vertices, &points, &cpd)?,
         };
-        let aligned = to_template(&mesh.vertices);
         if !self.procrustes {
             return Ok((h, aligned));
         }
