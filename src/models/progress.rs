@@ -1,5 +1,6 @@
 //! Progress reporting and cancellation checkpoints of a fit.
 
+use std::cell::Cell;
 use std::time::Instant;
 
 /// The job was asked to stop; the fit returns at the checkpoint that noticed it.
@@ -50,6 +51,9 @@ pub struct Stages {
     started: Instant,
     /// Seconds spent in each finished stage.
     pub seconds: Vec<(&'static str, f64)>,
+    /// The largest fraction reported so far: what a dashboard sees never moves back, even
+    /// when a stage trains several networks one after another.
+    reported: Cell<f64>,
 }
 
 impl Stages {
@@ -62,6 +66,7 @@ impl Stages {
             running: false,
             started: Instant::now(),
             seconds: Vec::new(),
+            reported: Cell::new(0.0),
         }
     }
 
@@ -108,11 +113,15 @@ impl Stages {
         } else {
             step as f64 / total as f64
         };
+        let fraction = (done + weight * within)
+            .clamp(0.0, 1.0)
+            .max(self.reported.get());
+        self.reported.set(fraction);
         progress.report(ProgressUpdate {
             stage,
             step,
             total,
-            fraction: (done + weight * within).clamp(0.0, 1.0),
+            fraction,
             message,
             loss,
         })
@@ -147,8 +156,13 @@ mod tests {
             .unwrap();
         stages.close();
         stages.close();
+        // A second network of the same stage starts its steps again; the fraction holds.
+        stages
+            .report(&mut record, 1, 2, String::new(), None)
+            .unwrap();
         assert!((record.0[0].fraction - 0.375).abs() < 1e-12);
         assert!((record.0[1].fraction - 1.0).abs() < 1e-12);
+        assert!((record.0[2].fraction - 1.0).abs() < 1e-12);
         assert_eq!(record.0[1].stage, "b");
         assert_eq!(stages.seconds.len(), 2);
         assert_eq!(stages.seconds[1].0, "b");
