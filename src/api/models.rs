@@ -81,6 +81,12 @@ pub struct ModelView {
     #[schema(value_type = Option<crate::models::spread::FidelitySummary>)]
     #[serde(skip_serializing_if = "serde_json::Value::is_null")]
     pub fidelity: serde_json::Value,
+    /// How each generator's KL weight β was chosen on held-out folds of its training shapes
+    /// (models of the ASMG family fitted on fewer than 50 shapes); absent when β was used as
+    /// given.
+    #[schema(value_type = Option<Vec<crate::models::beta_choice::BetaChoice>>)]
+    #[serde(skip_serializing_if = "serde_json::Value::is_null")]
+    pub beta_choices: serde_json::Value,
     /// Creation time (RFC 3339, UTC).
     pub created_at: String,
 }
@@ -239,6 +245,7 @@ impl From<ModelRecord> for ModelView {
             holdout_count: field("holdout_count"),
             timings: field("timings"),
             fidelity: field("fidelity"),
+            beta_choices: field("beta_choices"),
             id: r.id,
             model_type: r.model_type,
             params: r.params,

@@ -159,6 +159,9 @@ pub fn fit(args: &FitArgs) -> CliResult {
     if let Some(f) = &outcome.summary.fidelity {
         println!("{}", fidelity_markdown(f));
     }
+    for choice in &outcome.summary.beta_choices {
+        println!("{}\n", choice.sentence());
+    }
     if let Some(c) = &outcome.summary.clusters {
         println!("{}", clusters_markdown(c, &training_names, &holdout_names));
     }

@@ -53,6 +53,9 @@ pub struct FittedParts<M> {
     pub losses: Vec<LossCurve>,
     /// Soft clusters (multi-atlas models).
     pub clusters: Option<ClusterSummary>,
+    /// KL weights chosen on held-out folds, one per generator that chose (see
+    /// [`super::beta_choice`]).
+    pub beta_choices: Vec<super::beta_choice::BetaChoice>,
 }
 
 /// Evaluates the fitted model on the held-out meshes and samples, and assembles the
@@ -108,6 +111,7 @@ pub fn finish<M: FittedModel + 'static>(
         losses: parts.losses,
         clusters: parts.clusters,
         fidelity: Some(fidelity),
+        beta_choices: parts.beta_choices,
     };
     Ok(FitOutcome {
         model: StoredModel {

@@ -11,6 +11,7 @@
 pub mod alignment;
 pub mod asmg;
 pub mod atlas_r_asmg;
+pub mod beta_choice;
 pub mod clusters;
 pub mod cohort;
 pub mod conditional;
@@ -165,6 +166,30 @@ fn to_f64(shapes: &[Vec<[f32; 3]>]) -> Vec<Vec<[f64; 3]>> {
         .collect()
 }
 
+/// The near-copy threshold of shapes in correspondence (`[N, 3]` mm each) at the default
+/// percentile, as a cohort's privacy guard takes it (see [`TrainingShapes::new`]).
+pub(crate) fn near_copy_threshold<S: AsRef<[[f64; 3]]>>(
+    shapes: &[S],
+) -> Result<PrivacyThreshold, ModelError> {
+    threshold_at(shapes, crate::eval::privacy::DEFAULT_PERCENTILE)
+}
+
+fn threshold_at<S: AsRef<[[f64; 3]]>>(
+    shapes: &[S],
+    percentile: f64,
+) -> Result<PrivacyThreshold, ModelError> {
+    let corresponded = CorrespondedShapes::new(shapes)?;
+    // With few shapes every draw lies near their hull, which a new patient does not:
+    // compare like with like (each shape as the others' hull makes it).
+    Ok(
+        if (3..reference::SMALL_POPULATION).contains(&shapes.len()) {
+            corresponded.leave_one_out_threshold(shapes, percentile)?
+        } else {
+            corresponded.privacy_threshold(percentile)?
+        },
+    )
+}
+
 impl TrainingShapes {
     /// From aligned training vertices and their normalised shapes per atlas (model frame,
     /// mm); each atlas's threshold is the `percentile` of its normalised shapes'
@@ -177,16 +202,7 @@ impl TrainingShapes {
     ) -> Result<Self, ModelError> {
         let privacy = normalised
             .iter()
-            .map(|shapes| {
-                let corresponded = CorrespondedShapes::new(shapes)?;
-                // With few shapes every draw lies near their hull, which a new patient does
-                // not: compare like with like (each shape as the others' hull makes it).
-                if (3..reference::SMALL_POPULATION).contains(&shapes.len()) {
-                    corresponded.leave_one_out_threshold(shapes, percentile)
-                } else {
-                    corresponded.privacy_threshold(percentile)
-                }
-            })
+            .map(|shapes| threshold_at(shapes, percentile))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Self {
             shapes: to_f32(aligned),
@@ -286,6 +302,9 @@ pub struct ModelSummary {
     /// summaries stored before it existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fidelity: Option<spread::FidelitySummary>,
+    /// How each generator's KL weight was chosen on held-out folds (empty: as given).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub beta_choices: Vec<beta_choice::BetaChoice>,
 }
 
 /// The soft clusters of a multi-atlas fit (thesis eq. 5.13), in mesh order.

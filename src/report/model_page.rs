@@ -107,6 +107,9 @@ fn fidelity_section(s: &ModelSummary) -> String {
             escape(note)
         );
     }
+    for choice in &s.beta_choices {
+        let _ = write!(out, "<p>{}</p>", escape(&choice.sentence()));
+    }
     out
 }
 

@@ -3,6 +3,7 @@
 //! train the beta-VAE generator on the smoothed normalised shapes. The steps are shared
 //! with `atlas-r-asmg`, which refines Ψ and the atlas between the atlas and the generator.
 
+use super::beta_selection::{SelectionData, choose_beta, epochs_with_choice};
 use super::biomarker_calibration::mesh_biomarkers;
 use super::embeddings::Embeddings;
 use super::init::{AtlasInit, initial_atlas};
@@ -12,6 +13,7 @@ use super::monitor::StageMonitor;
 use super::params::{AsmgParams, AtlasChoice};
 use crate::mesh::Mesh;
 use crate::models::alignment::{median_resolution_index, simplified};
+use crate::models::beta_choice::BetaChoice;
 use crate::models::progress::{Progress, Stages};
 use crate::models::workers::map_items;
 use crate::models::{FitInput, FittedParts, LossCurve, ModelError};
@@ -282,15 +284,22 @@ pub(crate) struct GeneratorData<'a> {
     pub(crate) cluster: Option<(usize, usize)>,
 }
 
-/// Trains a generator (beta-VAE) on one atlas's shapes and builds the model of that atlas,
-/// with its loss curve (`beta_vae`, or `beta_vae_{m}` for cluster `m`).
+/// A generator's model, its loss curve (`beta_vae`, or `beta_vae_{m}` for cluster `m`) and
+/// how its KL weight was chosen (`None`: as given).
+pub(crate) struct TrainedGenerator {
+    pub(crate) model: AsmgModel,
+    pub(crate) curve: LossCurve,
+    pub(crate) beta_choice: Option<BetaChoice>,
+}
+
+/// Trains a generator (beta-VAE) on one atlas's shapes and builds the model of that atlas.
 pub(crate) fn train_generator(
     data: GeneratorData<'_>,
     params: &AsmgParams,
     seed: u64,
     stages: &Stages,
     progress: &mut dyn Progress,
-) -> Result<(AsmgModel, LossCurve), ModelError> {
+) -> Result<TrainedGenerator, ModelError> {
     let (curve_name, stage_name) = match data.cluster {
         None => ("beta_vae".to_owned(), "generator".to_owned()),
         Some((m, count)) => (
@@ -304,7 +313,7 @@ pub(crate) fn train_generator(
     } = super::pose::generator_shapes(data.shapes, params.procrustes)?;
     let atlas = data.atlas;
     let vae_config = BetaVaeConfig::new(3 * atlas.vertex_count()).with_latent(params.latent_dim);
-    let vae_training = BetaVaeTraining {
+    let mut vae_training = BetaVaeTraining {
         epochs: params.epochs_vae,
         batch_size: params.batch_size_vae,
         lr: params.lr,
@@ -312,7 +321,30 @@ pub(crate) fn train_generator(
         seed,
         ..BetaVaeTraining::default()
     };
-    let mut monitor = StageMonitor::new(stages, progress, &stage_name, params.epochs_vae);
+    let beta_choice = if params.choose_beta {
+        let selection = SelectionData {
+            shapes: &shapes,
+            weights: data.weights,
+            cluster: data.cluster.map(|(m, _)| m),
+            measured: data.measured,
+            faces: &atlas.faces,
+            calibration: params.calibrate_spread.then_some(params.calibration),
+        };
+        choose_beta(&selection, &vae_config, &vae_training, stages, progress)?
+    } else {
+        None
+    };
+    if let Some(choice) = &beta_choice {
+        vae_training.beta = choice.chosen;
+    }
+    let epochs = params.epochs_vae;
+    let span = if beta_choice.is_some() {
+        let all = epochs_with_choice(epochs);
+        (all - epochs, all)
+    } else {
+        (0, epochs)
+    };
+    let mut monitor = StageMonitor::spanning(stages, progress, &stage_name, epochs, span);
     let generator = train_weighted_beta_vae(
         &shapes,
         data.weights,
@@ -348,7 +380,11 @@ pub(crate) fn train_generator(
     if params.calibrate_spread {
         model.calibrate_spread(&shapes, data.weights, data.measured, seed)?;
     }
-    Ok((model, curve))
+    Ok(TrainedGenerator {
+        model,
+        curve,
+        beta_choice,
+    })
 }
 
 /// Trains the generator on the smoothed normalised shapes and builds the model.
@@ -377,10 +413,10 @@ pub(crate) fn train_generator_and_build(
         measured: &measured,
         cluster: None,
     };
-    let (model, curve) = train_generator(data, params, seed, stages, progress)?;
-    losses.push(curve);
+    let trained = train_generator(data, params, seed, stages, progress)?;
+    losses.push(trained.curve);
     Ok(FittedParts {
-        model,
+        model: trained.model,
         aligned_training: aligned.vertices,
         // The members are compared with these (same atlas vertices, model frame, mm).
         normalised: vec![smoothed],
@@ -388,6 +424,7 @@ pub(crate) fn train_generator_and_build(
         n_modes: None,
         losses,
         clusters: None,
+        beta_choices: trained.beta_choice.into_iter().collect(),
     })
 }
 

@@ -89,6 +89,15 @@ fn fit_samples_reconstructs_and_round_trips() {
     assert!(matching.hd.mean > 0.0 && matching.hd.mean < 40.0);
     assert!(generalisation.hd.mean > 0.0 && generalisation.hd.mean < 60.0);
     assert_eq!(evaluation.per_item.specificity.len(), 6);
+    // Six training shapes: the generator's β was chosen on folds, starting at the one asked.
+    let [choice] = outcome.summary.beta_choices.as_slice() else {
+        panic!(
+            "one generator, one choice: {:?}",
+            outcome.summary.beta_choices
+        );
+    };
+    assert_eq!(choice.candidates[0].beta, params.beta);
+    assert!(choice.candidates.iter().any(|c| c.beta == choice.chosen));
 
     let sample = model
         .sample(&mut draw_rng(5, 0), Sampling::Gaussian)

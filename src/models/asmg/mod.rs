@@ -11,12 +11,14 @@
 //! - [`learn`]: Algorithm 1, the loop over all of the above until the atlas settles;
 //! - [`soft_clusters`]: soft memberships of shapes in several atlases and the weighted
 //!   atlas update (the multi-atlas building blocks);
+//! - [`beta_selection`]: the generator's KL weight chosen on held-out folds of few shapes;
 //! - [`params`]: the job parameters of `model_type: "asmg"`;
 //! - [`fit`]: the whole fit (pre-alignment, Ψ, atlas, generator, evaluation);
 //! - [`model`]: the fitted model (sampling, reconstruction, stored weights).
 
 pub mod atlas;
 pub mod attention;
+mod beta_selection;
 pub mod biomarker_calibration;
 pub mod calibration;
 pub mod embeddings;

@@ -346,7 +346,7 @@ impl AsmgModel {
 }
 
 /// One latent coordinate: standard normal clipped to ±[`LATENT_CLIP`], or uniform on it.
-fn latent_coordinate(rng: &mut ChaCha8Rng, sampling: Sampling) -> f32 {
+pub(super) fn latent_coordinate(rng: &mut ChaCha8Rng, sampling: Sampling) -> f32 {
     let v: f64 = match sampling {
         Sampling::Gaussian => rng.sample::<f64, _>(StandardNormal),
         Sampling::Uniform => rng.random_range(-LATENT_CLIP..=LATENT_CLIP),

@@ -9,8 +9,9 @@ pub(crate) struct StageMonitor<'a> {
     stages: &'a Stages,
     progress: &'a mut dyn Progress,
     network: String,
-    epochs: u64,
     epochs_done: u64,
+    /// Epochs of the stage before this network's and in all (see [`Self::spanning`]).
+    span: (u64, u64),
     last_loss: Option<f64>,
     /// Mean loss of every finished epoch, in order.
     pub(crate) losses: Vec<f64>,
@@ -29,18 +30,36 @@ impl<'a> StageMonitor<'a> {
             stages,
             progress,
             network: network.to_owned(),
-            epochs: epochs as u64,
             epochs_done: 0,
+            span: (0, epochs as u64),
             last_loss: None,
             losses: Vec::new(),
         }
     }
 
-    fn answer(&mut self, step: u64, total: u64, message: String) -> Flow {
-        match self
-            .stages
-            .report(self.progress, step, total, message, self.last_loss)
-        {
+    /// As [`Self::new`], for one of several networks trained in the same stage: progress is
+    /// reported as `before + epoch` of `all` epochs of the stage.
+    pub(crate) fn spanning(
+        stages: &'a Stages,
+        progress: &'a mut dyn Progress,
+        network: &str,
+        epochs: usize,
+        (before, all): (usize, usize),
+    ) -> Self {
+        let mut monitor = Self::new(stages, progress, network, epochs);
+        monitor.span = (before as u64, all as u64);
+        monitor
+    }
+
+    fn answer(&mut self, message: String) -> Flow {
+        let (before, all) = self.span;
+        match self.stages.report(
+            self.progress,
+            before + self.epochs_done,
+            all,
+            message,
+            self.last_loss,
+        ) {
             Ok(()) => Flow::Continue,
             Err(_) => Flow::Cancel,
         }
@@ -51,7 +70,7 @@ impl Monitor for StageMonitor<'_> {
     fn batch(&mut self) -> Flow {
         // Progress is cheap to record; this is the cancellation checkpoint between batches.
         let message = format!("training the {}", self.network);
-        self.answer(self.epochs_done, self.epochs, message)
+        self.answer(message)
     }
 
     fn epoch(&mut self, epoch: usize, epochs: usize, mean_loss: f64) -> Flow {
@@ -63,7 +82,7 @@ impl Monitor for StageMonitor<'_> {
             self.network,
             epoch + 1
         );
-        self.answer(self.epochs_done, epochs as u64, message)
+        self.answer(message)
     }
 }
 

@@ -39,6 +39,7 @@ use crate::models::asmg::fit::{
 use crate::models::asmg::multi_atlas::{AtlasSet, Memberships, learn_atlases};
 use crate::models::asmg::{self, AsmgParams, initial_atlas};
 use crate::models::atlas_r_asmg::refine_atlases;
+use crate::models::beta_choice::BetaChoice;
 use crate::models::progress::{Progress, Stages};
 use crate::models::{ClusterSummary, FitInput, FittedParts, LossCurve, ModelError, ModelFamily};
 
@@ -200,6 +201,14 @@ fn priors(weights: &[Vec<f64>], count: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The generators of every cluster, in cluster order.
+#[derive(Default)]
+struct Generators {
+    models: Vec<asmg::AsmgModel>,
+    curves: Vec<LossCurve>,
+    beta_choices: Vec<BetaChoice>,
+}
+
 /// A generator per atlas on the shapes of that cluster, weighted.
 #[allow(clippy::too_many_arguments)]
 fn train_generators(
@@ -211,10 +220,9 @@ fn train_generators(
     seed: u64,
     stages: &Stages,
     progress: &mut dyn Progress,
-) -> Result<(Vec<asmg::AsmgModel>, Vec<LossCurve>), ModelError> {
+) -> Result<Generators, ModelError> {
     let count = atlases.len();
-    let mut parts = Vec::with_capacity(count);
-    let mut curves = Vec::with_capacity(count);
+    let mut generators = Generators::default();
     for (m, atlas) in atlases.into_iter().enumerate() {
         let column: Vec<f64> = memberships.weights.iter().map(|row| row[m]).collect();
         let mut members: Vec<usize> = (0..column.len())
@@ -249,12 +257,12 @@ fn train_generators(
         } else {
             seed ^ GENERATOR_SEED_SALT.wrapping_mul(m as u64)
         };
-        let (part, curve) =
-            train_generator(data, &params.refined.asmg, part_seed, stages, progress)?;
-        parts.push(part);
-        curves.push(curve);
+        let trained = train_generator(data, &params.refined.asmg, part_seed, stages, progress)?;
+        generators.models.push(trained.model);
+        generators.curves.push(trained.curve);
+        generators.beta_choices.extend(trained.beta_choice);
     }
-    Ok((parts, curves))
+    Ok(generators)
 }
 
 fn fit(
@@ -300,7 +308,7 @@ fn fit(
         .into_iter()
         .map(|shapes| asmg::fit::refined(asmg, shapes, &aligned))
         .collect::<Result<_, _>>()?;
-    let (parts, curves) = train_generators(
+    let generators = train_generators(
         &refined.graph,
         &aligned,
         refined.atlases,
@@ -310,9 +318,9 @@ fn fit(
         stages,
         progress,
     )?;
-    losses.extend(curves);
+    losses.extend(generators.curves);
     let model = MatlasModel::new(
-        parts,
+        generators.models,
         priors(&memberships.weights, count),
         memberships.alpha,
     )?;
@@ -335,6 +343,7 @@ fn fit(
         n_modes: None,
         losses,
         clusters: Some(clusters),
+        beta_choices: generators.beta_choices,
     })
 }
 

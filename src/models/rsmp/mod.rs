@@ -361,6 +361,7 @@ fn fit(
         normalised: vec![shapes],
         losses: Vec::new(),
         clusters: None,
+        beta_choices: Vec::new(),
     })
 }
 
