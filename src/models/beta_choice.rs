@@ -69,25 +69,12 @@ impl BetaChoice {
         })
     }
 
-    /// One sentence for the model summary.
-    pub fn sentence(&self) -> String {
+    /// What was kept and why, without the candidates' figures.
+    pub fn outcome(&self) -> String {
         let whose = match self.cluster {
             Some(m) => format!("The generator of cluster {}", m + 1),
             None => "The generator".to_owned(),
         };
-        let measured = self
-            .candidates
-            .iter()
-            .map(|c| {
-                format!(
-                    "β {}: {:.1}% near copies, held-out error {:.2} mm",
-                    c.beta,
-                    100.0 * c.near_copy_fraction,
-                    c.holdout_error_mm
-                )
-            })
-            .collect::<Vec<_>>()
-            .join("; ");
         let why = if self.within_bound {
             format!(
                 "the smallest held-out error among those with at most {:.0}% near copies",
@@ -101,9 +88,27 @@ impl BetaChoice {
         };
         format!(
             "{whose} was trained with KL weight β {} chosen on {} held-out folds of its \
-             training shapes ({why}): {measured}.",
+             training shapes ({why})",
             self.chosen, self.folds
         )
+    }
+
+    /// One sentence for the model summary: [`Self::outcome`] and every candidate's figures.
+    pub fn sentence(&self) -> String {
+        let measured = self
+            .candidates
+            .iter()
+            .map(|c| {
+                format!(
+                    "β {}: {:.1}% near copies, held-out error {:.2} mm",
+                    c.beta,
+                    100.0 * c.near_copy_fraction,
+                    c.holdout_error_mm
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("; ");
+        format!("{}: {measured}.", self.outcome())
     }
 }
 

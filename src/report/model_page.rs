@@ -43,6 +43,7 @@ pub fn model_page(m: &ModelPage<'_>) -> String {
     );
     body.push_str(&metric_table(m));
     body.push_str(&fidelity_section(s));
+    body.push_str(&beta_section(s));
     body.push_str(&clusters_section(m));
     body.push_str(&pictures_section(m.pictures));
     body.push_str("<h2>Distributions</h2><div class=\"plots\">");
@@ -107,8 +108,36 @@ fn fidelity_section(s: &ModelSummary) -> String {
             escape(note)
         );
     }
+    out
+}
+
+/// How each generator's KL weight was chosen: a sentence and the candidates' figures.
+fn beta_section(s: &ModelSummary) -> String {
+    if s.beta_choices.is_empty() {
+        return String::new();
+    }
+    let mut out = String::from("<h2>Generator KL weight</h2>");
     for choice in &s.beta_choices {
-        let _ = write!(out, "<p>{}</p>", escape(&choice.sentence()));
+        let _ = write!(
+            out,
+            "<p>{}. Each fold's generator drew {} shapes; a draw is a near copy when it lies \
+             nearer to one of that generator's training shapes than their near-copy \
+             threshold.</p><table><tr><th>β</th><th>near copies among fold draws</th>\
+             <th>held-out error, mm</th><th></th></tr>",
+            escape(&choice.outcome()),
+            choice.draws_per_fold
+        );
+        for c in &choice.candidates {
+            let kept = if c.beta == choice.chosen { "kept" } else { "" };
+            let _ = write!(
+                out,
+                "<tr><td>{}</td><td>{:.1}%</td><td>{:.2}</td><td>{kept}</td></tr>",
+                c.beta,
+                100.0 * c.near_copy_fraction,
+                c.holdout_error_mm
+            );
+        }
+        out.push_str("</table>");
     }
     out
 }

@@ -236,6 +236,33 @@ mod tests {
     }
 
     #[test]
+    fn a_chosen_kl_weight_is_listed_with_every_candidate() {
+        use crate::models::beta_choice::{BetaCandidate, BetaChoice};
+        let mut s = summary();
+        assert!(!model_page(&page(&s)).contains("Generator KL weight"));
+        let candidate = |beta, near_copy_fraction, holdout_error_mm| BetaCandidate {
+            beta,
+            near_copy_fraction,
+            holdout_error_mm,
+        };
+        s.beta_choices = BetaChoice::pick(
+            None,
+            4,
+            100,
+            vec![candidate(1.0, 0.4, 3.25), candidate(10.0, 0.035, 3.36)],
+        )
+        .into_iter()
+        .collect();
+        let html = model_page(&page(&s));
+        assert!(
+            html.contains("KL weight β 10 chosen on 4 held-out folds"),
+            "{html}"
+        );
+        assert!(html.contains("<tr><td>1</td><td>40.0%</td><td>3.25</td><td></td></tr>"));
+        assert!(html.contains("<tr><td>10</td><td>3.5%</td><td>3.36</td><td>kept</td></tr>"));
+    }
+
+    #[test]
     fn missing_plots_say_why() {
         let s = summary();
         let m = page(&s);

@@ -42,7 +42,7 @@ const DRAWS_PER_FOLD: usize = 100;
 /// The candidates, as multiples of the β asked for.
 const BETA_FACTORS: [f64; 4] = [1.0, 3.0, 10.0, 30.0];
 
-/// The shapes one generator learns from, as in [`super::fit::train_generator`].
+/// The shapes one generator learns from, as in [`super::generator::train_generator`].
 pub(crate) struct SelectionData<'a> {
     /// Flattened shapes `[3·N_μ]`, mm.
     pub(crate) shapes: &'a [Vec<f32>],

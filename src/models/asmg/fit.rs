@@ -3,24 +3,20 @@
 //! train the beta-VAE generator on the smoothed normalised shapes. The steps are shared
 //! with `atlas-r-asmg`, which refines Ψ and the atlas between the atlas and the generator.
 
-use super::beta_selection::{SelectionData, choose_beta, epochs_with_choice};
 use super::biomarker_calibration::mesh_biomarkers;
 use super::embeddings::Embeddings;
+pub(crate) use super::generator::{GeneratorData, train_generator};
 use super::init::{AtlasInit, initial_atlas};
 use super::learn::{LearnedAtlas, ShapeInput, learn_atlas};
-use super::model::{AsmgModel, NetworkSizes, align, embed_mesh, embeddings_of, nn_error};
+use super::model::{AsmgModel, align, embed_mesh, embeddings_of, nn_error};
 use super::monitor::StageMonitor;
 use super::params::{AsmgParams, AtlasChoice};
 use crate::mesh::Mesh;
 use crate::models::alignment::{median_resolution_index, simplified};
-use crate::models::beta_choice::BetaChoice;
 use crate::models::progress::{Progress, Stages};
 use crate::models::workers::map_items;
 use crate::models::{FitInput, FittedParts, LossCurve, ModelError};
-use crate::nn::{
-    BetaVaeConfig, BetaVaeTraining, GraphSample, GraphVaeConfig, GraphVaeTraining, TrainedGraphVae,
-    train_graph_vae, train_weighted_beta_vae,
-};
+use crate::nn::{GraphSample, GraphVaeConfig, GraphVaeTraining, TrainedGraphVae, train_graph_vae};
 
 /// Fewest training meshes an ASMG fit accepts.
 pub const MIN_TRAINING_MESHES: usize = 3;
@@ -262,129 +258,6 @@ pub(crate) struct Correspondences {
     pub(crate) aligned: Aligned,
     /// Loss curves so far (Ψ, refinement).
     pub(crate) losses: Vec<LossCurve>,
-}
-
-/// One generator's training data: shapes on one atlas and, for a soft cluster, a weight
-/// per shape.
-pub(crate) struct GeneratorData<'a> {
-    /// Ψ (shared by every atlas).
-    pub(crate) graph: &'a TrainedGraphVae,
-    /// The atlas (mm, model frame).
-    pub(crate) atlas: Mesh,
-    /// The mesh inputs are registered to.
-    pub(crate) reference: &'a Mesh,
-    /// The smoothed normalised shapes on `atlas`, `[N_μ, 3]` mm each.
-    pub(crate) shapes: &'a [Vec<[f64; 3]>],
-    /// Weight per shape (`None`: all equal).
-    pub(crate) weights: Option<&'a [f32]>,
-    /// (volume ml, area cm²) of each shape's training mesh (simplified), in `shapes`' order:
-    /// the spread the calibration gives the draws.
-    pub(crate) measured: &'a [[f64; 2]],
-    /// `(m, M)` for the generator of cluster `m` of `M`; `None` for a model of one atlas.
-    pub(crate) cluster: Option<(usize, usize)>,
-}
-
-/// A generator's model, its loss curve (`beta_vae`, or `beta_vae_{m}` for cluster `m`) and
-/// how its KL weight was chosen (`None`: as given).
-pub(crate) struct TrainedGenerator {
-    pub(crate) model: AsmgModel,
-    pub(crate) curve: LossCurve,
-    pub(crate) beta_choice: Option<BetaChoice>,
-}
-
-/// Trains a generator (beta-VAE) on one atlas's shapes and builds the model of that atlas.
-pub(crate) fn train_generator(
-    data: GeneratorData<'_>,
-    params: &AsmgParams,
-    seed: u64,
-    stages: &Stages,
-    progress: &mut dyn Progress,
-) -> Result<TrainedGenerator, ModelError> {
-    let (curve_name, stage_name) = match data.cluster {
-        None => ("beta_vae".to_owned(), "generator".to_owned()),
-        Some((m, count)) => (
-            format!("beta_vae_{m}"),
-            format!("generator {} of {count}", m + 1),
-        ),
-    };
-    let super::pose::GeneratorShapes {
-        flat: shapes,
-        procrustes_mean,
-    } = super::pose::generator_shapes(data.shapes, params.procrustes)?;
-    let atlas = data.atlas;
-    let vae_config = BetaVaeConfig::new(3 * atlas.vertex_count()).with_latent(params.latent_dim);
-    let mut vae_training = BetaVaeTraining {
-        epochs: params.epochs_vae,
-        batch_size: params.batch_size_vae,
-        lr: params.lr,
-        beta: params.beta,
-        seed,
-        ..BetaVaeTraining::default()
-    };
-    let beta_choice = if params.choose_beta {
-        let selection = SelectionData {
-            shapes: &shapes,
-            weights: data.weights,
-            cluster: data.cluster.map(|(m, _)| m),
-            measured: data.measured,
-            faces: &atlas.faces,
-            calibration: params.calibrate_spread.then_some(params.calibration),
-        };
-        choose_beta(&selection, &vae_config, &vae_training, stages, progress)?
-    } else {
-        None
-    };
-    if let Some(choice) = &beta_choice {
-        vae_training.beta = choice.chosen;
-    }
-    let epochs = params.epochs_vae;
-    let span = if beta_choice.is_some() {
-        let all = epochs_with_choice(epochs);
-        (all - epochs, all)
-    } else {
-        (0, epochs)
-    };
-    let mut monitor = StageMonitor::spanning(stages, progress, &stage_name, epochs, span);
-    let generator = train_weighted_beta_vae(
-        &shapes,
-        data.weights,
-        &vae_config,
-        &vae_training,
-        &mut monitor,
-    )
-    .map_err(nn_error)?;
-    let curve = LossCurve {
-        network: curve_name,
-        per_epoch: monitor.losses,
-    };
-    let weights = (
-        data.graph.to_bytes().map_err(nn_error)?,
-        generator.to_bytes().map_err(nn_error)?,
-    );
-    let sizes = NetworkSizes::of(&data.graph.config, &generator.config);
-    let latent_prior = generator
-        .weighted_aggregate_prior(&shapes, data.weights)
-        .map_err(nn_error)?;
-    let networks = AsmgModel::derive(data.graph.clone(), generator, &atlas, params)?;
-    let mut model = AsmgModel::new(
-        atlas,
-        data.reference.clone(),
-        params.clone(),
-        sizes,
-        weights,
-        Some(networks),
-    );
-    model.latent_prior = Some(latent_prior);
-    model.procrustes_mean = procrustes_mean;
-    model.nonrigid = params.nonrigid_refinement();
-    if params.calibrate_spread {
-        model.calibrate_spread(&shapes, data.weights, data.measured, seed)?;
-    }
-    Ok(TrainedGenerator {
-        model,
-        curve,
-        beta_choice,
-    })
 }
 
 /// Trains the generator on the smoothed normalised shapes and builds the model.

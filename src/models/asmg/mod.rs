@@ -14,6 +14,7 @@
 //! - [`beta_selection`]: the generator's KL weight chosen on held-out folds of few shapes;
 //! - [`params`]: the job parameters of `model_type: "asmg"`;
 //! - [`fit`]: the whole fit (pre-alignment, Ψ, atlas, generator, evaluation);
+//! - `generator`: one atlas's beta-VAE and the model built around it;
 //! - [`model`]: the fitted model (sampling, reconstruction, stored weights).
 
 pub mod atlas;
@@ -23,6 +24,7 @@ pub mod biomarker_calibration;
 pub mod calibration;
 pub mod embeddings;
 pub mod fit;
+mod generator;
 pub mod icosphere;
 pub mod init;
 pub mod laplacian;
