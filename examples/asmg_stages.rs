@@ -18,7 +18,8 @@ use cohortforge::mesh::measures::volume_ml;
 use cohortforge::mesh::phantom::{self, Family};
 use cohortforge::models::alignment::median_resolution_index;
 use cohortforge::models::alignment::simplified;
-use cohortforge::models::asmg::model::{align, embed_mesh, embeddings_of, flatten_f32};
+use cohortforge::models::asmg::model::{embed_mesh, embeddings_of, flatten_f32};
+use cohortforge::models::asmg::registration::align;
 use cohortforge::models::asmg::{
     AsmgParams, AtlasInit, Embeddings, ShapeInput, Smoother, Temperature, correspond,
     initial_atlas, learn_atlas,
@@ -61,7 +62,7 @@ fn aligned_meshes(count: usize, seed: u64, params: &AsmgParams) -> Vec<Mesh> {
     let aligned: Vec<Mesh> = meshes
         .iter()
         .map(|m| {
-            align(&reference, m, &alignment, params.max_vertices)
+            align(&reference, m, &alignment, params.max_vertices, &[])
                 .expect("align")
                 .0
         })

@@ -87,6 +87,11 @@ pub struct ModelView {
     #[schema(value_type = Option<Vec<crate::models::beta_choice::BetaChoice>>)]
     #[serde(skip_serializing_if = "serde_json::Value::is_null")]
     pub beta_choices: serde_json::Value,
+    /// The training meshes registered as their mirror images (`mirror`: left and right
+    /// organs all learned on the side of the alignment reference, which every member takes);
+    /// absent when none was.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub mirrored_mesh_ids: Vec<String>,
     /// Creation time (RFC 3339, UTC).
     pub created_at: String,
 }
@@ -225,6 +230,21 @@ fn atlases_of(id: &str, summary: &serde_json::Value) -> Vec<AtlasView> {
         .collect()
 }
 
+/// The ids of the training meshes the summary lists as mirrored (by training position).
+fn mirrored_of(summary: &serde_json::Value, provenance: &Provenance) -> Vec<String> {
+    summary
+        .get("mirrored_training")
+        .and_then(serde_json::Value::as_array)
+        .map(|positions| {
+            positions
+                .iter()
+                .filter_map(serde_json::Value::as_u64)
+                .filter_map(|k| provenance.training_mesh_ids.get(k as usize).cloned())
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
 impl From<ModelRecord> for ModelView {
     fn from(r: ModelRecord) -> Self {
         let field = |name: &str| {
@@ -246,6 +266,7 @@ impl From<ModelRecord> for ModelView {
             timings: field("timings"),
             fidelity: field("fidelity"),
             beta_choices: field("beta_choices"),
+            mirrored_mesh_ids: mirrored_of(&r.summary, &r.provenance),
             id: r.id,
             model_type: r.model_type,
             params: r.params,
@@ -424,4 +445,23 @@ async fn atlas_response(
         format!("atlas_{m}_{id}")
     };
     Ok(mesh_file_response(&name, format, bytes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mirrored_training_positions_become_mesh_ids() {
+        let provenance = Provenance {
+            training_mesh_ids: vec!["a".into(), "b".into(), "c".into()],
+            holdout_mesh_ids: vec!["d".into()],
+            training_sha256: Vec::new(),
+            holdout_sha256: Vec::new(),
+        };
+        let summary = serde_json::json!({"mirrored_training": [0, 2]});
+        assert_eq!(mirrored_of(&summary, &provenance), ["a", "c"]);
+        // Models fitted without `mirror` (or before it) list none.
+        assert!(mirrored_of(&serde_json::json!({}), &provenance).is_empty());
+    }
 }

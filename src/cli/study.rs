@@ -165,6 +165,12 @@ pub fn fit(args: &FitArgs) -> CliResult {
     if let Some(c) = &outcome.summary.clusters {
         println!("{}", clusters_markdown(c, &training_names, &holdout_names));
     }
+    if !outcome.summary.mirrored_training.is_empty() {
+        println!(
+            "{}\n",
+            mirrored_sentence(&outcome.summary.mirrored_training, &training_names)
+        );
+    }
     println!(
         "fitted {} in {:.1} s ({} modes); wrote {}",
         args.model.as_str(),
@@ -176,6 +182,21 @@ pub fn fit(args: &FitArgs) -> CliResult {
         args.out.display()
     );
     Ok(())
+}
+
+/// Which training meshes were registered as their mirror images.
+fn mirrored_sentence(positions: &[usize], names: &[String]) -> String {
+    let listed: Vec<&str> = positions
+        .iter()
+        .filter_map(|k| names.get(*k).map(String::as_str))
+        .collect();
+    format!(
+        "{} of the {} training meshes were registered as their mirror images, to the side of \
+         the alignment reference, which every member takes: {}.",
+        listed.len(),
+        names.len(),
+        listed.join(", ")
+    )
 }
 
 /// The spread of the fit's own cohort against the training meshes.

@@ -43,6 +43,11 @@ pub struct AlignmentParams {
     pub refine_points: usize,
     /// Most CPD iterations on all points after the intermediate registration.
     pub finish_iterations: usize,
+    /// Register each mesh as its mirror image too and let the population choose between
+    /// the two (see [`crate::models::sides`]). Absent from models stored before it existed:
+    /// false.
+    #[serde(default)]
+    pub mirror: bool,
 }
 
 impl Default for AlignmentParams {
@@ -54,6 +59,7 @@ impl Default for AlignmentParams {
             search_iterations: 30,
             refine_points: 600,
             finish_iterations: 20,
+            mirror: false,
         }
     }
 }
@@ -206,6 +212,50 @@ pub fn register(
     Ok(result)
 }
 
+/// A registration of the template onto a mesh or onto the mesh's mirror image.
+#[derive(Debug, Clone)]
+pub struct Registration {
+    /// Maps template points onto the registered points: the mesh's vertices, or their
+    /// mirror images when `mirrored`.
+    pub cpd: CpdResult,
+    /// The mesh was mirrored (x → −x) before it was registered, because its mirror image
+    /// fits the template clearly better (a left kidney against a right one).
+    pub mirrored: bool,
+}
+
+impl Registration {
+    /// A point of the mesh (mm) as it was registered: mirrored when the mesh was.
+    pub fn registered(&self, p: [f64; 3]) -> [f64; 3] {
+        if self.mirrored { mirror(p) } else { p }
+    }
+
+    /// Points of the mesh (mm) as they were registered.
+    pub fn registered_points(&self, points: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        points.iter().map(|p| self.registered(*p)).collect()
+    }
+
+    /// A point of the mesh (mm) in the template frame.
+    pub fn to_template_frame(&self, p: [f64; 3]) -> [f64; 3] {
+        self.cpd.transform.inverse_apply(self.registered(p))
+    }
+
+    /// The mesh's faces for its vertices in the template frame: a mirror image turns a
+    /// surface inside out, so each mirrored triangle's winding is reversed to keep its
+    /// normal pointing outwards.
+    pub fn faces(&self, faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
+        if self.mirrored {
+            faces.iter().map(|&[a, b, c]| [a, c, b]).collect()
+        } else {
+            faces.to_vec()
+        }
+    }
+}
+
+/// The mirror image of a point in the plane x = 0.
+pub fn mirror(p: [f64; 3]) -> [f64; 3] {
+    [-p[0], p[1], p[2]]
+}
+
 /// One global affine normalisation of a dataset, `x' = (x − centre) / scale`, kept with the
 /// model and undone on every output so that outputs are in mm.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -255,145 +305,5 @@ impl Normalisation {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::geometry::points::{axis_angle, mat_vec};
-    use crate::mesh::phantom::{self, Family};
-
-    /// Largest distance (mm) between `T(p)` and the moved point, over all vertices.
-    fn worst_residual(result: &CpdResult, original: &[[f64; 3]], moved: &[[f64; 3]]) -> f64 {
-        original
-            .iter()
-            .zip(moved)
-            .map(|(p, q)| {
-                let a = result.transform.apply(*p);
-                ((a[0] - q[0]).powi(2) + (a[1] - q[1]).powi(2) + (a[2] - q[2]).powi(2)).sqrt()
-            })
-            .fold(0.0, f64::max)
-    }
-
-    fn moved(mesh: &Mesh, scale: f64) -> Vec<[f64; 3]> {
-        let rotation = axis_angle([0.3, -0.8, 0.52], 2.6);
-        mesh.vertices
-            .iter()
-            .map(|p| {
-                let r = mat_vec(&rotation, *p);
-                [
-                    scale * r[0] + 40.0,
-                    scale * r[1] - 25.0,
-                    scale * r[2] + 10.0,
-                ]
-            })
-            .collect()
-    }
-
-    #[test]
-    fn registration_recovers_a_large_rotation_of_a_phantom() {
-        let liver = &phantom::generate(Family::Liver, 1, 4)[0].mesh;
-        let target = moved(liver, 1.0);
-        let result = register(&liver.vertices, &target, &AlignmentParams::default()).unwrap();
-        let worst = worst_residual(&result, &liver.vertices, &target);
-        assert!(worst < 1e-3, "largest residual {worst} mm");
-    }
-
-    #[test]
-    fn registration_of_a_symmetric_cup_matches_the_surface() {
-        // The LV cup is nearly symmetric about its long axis: any spin about it fits, so
-        // check the surface fit rather than vertex correspondences.
-        let lv = &phantom::generate(Family::Lv, 1, 4)[0].mesh;
-        let target = moved(lv, 1.0);
-        let result = register(&lv.vertices, &target, &AlignmentParams::default()).unwrap();
-        // Spins about the axis fit almost equally (about 2 mm apart here); a flipped or
-        // tilted cup would be tens of mm off.
-        let moved_template = result.transform.apply_all(&lv.vertices);
-        let d = crate::geometry::distance::surface_distances(&moved_template, &target).unwrap();
-        assert!(d.ed < 2.5 && d.ed_star < 2.5, "{d:?}");
-    }
-
-    #[test]
-    fn cpd_run_to_convergence_recovers_rotation_translation_and_scale_of_a_phantom() {
-        let liver = &phantom::generate(Family::Liver, 1, 6)[0].mesh;
-        let template = subsample(&liver.vertices, 400);
-        let rotation = axis_angle([0.2, 0.9, -0.4], 0.5);
-        let data: Vec<[f64; 3]> = template
-            .iter()
-            .map(|p| {
-                let r = mat_vec(&rotation, *p);
-                [1.15 * r[0] + 12.0, 1.15 * r[1] - 7.0, 1.15 * r[2] + 3.0]
-            })
-            .collect();
-        // As in `register`: start at the data's size (a cold start with a free scale can
-        // collapse the template) and a variance of 1 mm²; the data has no outliers (w = 0).
-        let params = RigidCpdParams {
-            scale: true,
-            w: 0.0,
-            max_iterations: 5000,
-            tolerance: 1e-15,
-            ..Default::default()
-        };
-        let s0 = rms_radius(&data) / rms_radius(&template);
-        let (cx, cy) = (centroid(&data, None), centroid(&template, None));
-        let identity = crate::geometry::points::IDENTITY3;
-        let start = RigidTransform {
-            rotation: identity,
-            translation: sub(cx, cy.map(|c| c * s0)),
-            scale: s0,
-        };
-        let result = rigid_cpd_warm(&template, &data, &params, &start, 1.0).unwrap();
-        assert!(
-            (result.transform.scale - 1.15).abs() < 1e-3,
-            "scale {}",
-            result.transform.scale
-        );
-        for (a, b) in result
-            .transform
-            .rotation
-            .iter()
-            .flatten()
-            .zip(rotation.iter().flatten())
-        {
-            assert!(
-                (a - b).abs() < 1e-3,
-                "rotation {:?}",
-                result.transform.rotation
-            );
-        }
-        let expected_t = [12.0, -7.0, 3.0];
-        for (a, b) in result.transform.translation.iter().zip(expected_t) {
-            assert!(
-                (a - b).abs() < 1e-3 * 100.0,
-                "translation {:?}",
-                result.transform.translation
-            );
-        }
-    }
-
-    #[test]
-    fn registration_with_scale_recovers_a_scaled_phantom() {
-        let liver = &phantom::generate(Family::Liver, 1, 6)[0].mesh;
-        let target = moved(liver, 1.15);
-        let mut params = AlignmentParams::default();
-        params.cpd.scale = true;
-        let result = register(&liver.vertices, &target, &params).unwrap();
-        let worst = worst_residual(&result, &liver.vertices, &target);
-        assert!(worst < 1e-3, "largest residual {worst} mm");
-    }
-
-    #[test]
-    fn normalisation_round_trips_and_fits_the_unit_box() {
-        let shapes = vec![vec![[0.0, 0.0, 0.0], [100.0, 50.0, 20.0]]];
-        let n = Normalisation::fit(&shapes);
-        assert_eq!(n.scale_mm, 100.0);
-        assert_eq!(n.apply([100.0, 50.0, 20.0]), [0.5, 0.25, 0.1]);
-        let p = [12.5, -3.0, 7.0];
-        let back = n.undo(n.apply(p));
-        assert!((0..3).all(|k| (back[k] - p[k]).abs() < 1e-12));
-    }
-
-    #[test]
-    fn median_resolution_prefers_the_middle_mesh() {
-        let mesh = |n: usize| Mesh::new(vec![[0.0; 3]; n], vec![]);
-        let meshes = vec![mesh(10), mesh(300), mesh(100), mesh(2000), mesh(90)];
-        assert_eq!(median_resolution_index(&meshes), 2);
-    }
-}
+#[path = "alignment_tests.rs"]
+mod tests;

@@ -56,6 +56,9 @@ pub struct FittedParts<M> {
     /// KL weights chosen on held-out folds, one per generator that chose (see
     /// [`super::beta_choice`]).
     pub beta_choices: Vec<super::beta_choice::BetaChoice>,
+    /// Positions (in the training order) of the training meshes registered as their
+    /// mirror images (see [`super::sides`]).
+    pub mirrored_training: Vec<usize>,
 }
 
 /// Evaluates the fitted model on the held-out meshes and samples, and assembles the
@@ -112,6 +115,7 @@ pub fn finish<M: FittedModel + 'static>(
         clusters: parts.clusters,
         fidelity: Some(fidelity),
         beta_choices: parts.beta_choices,
+        mirrored_training: parts.mirrored_training,
     };
     Ok(FitOutcome {
         model: StoredModel {

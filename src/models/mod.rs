@@ -25,6 +25,7 @@ pub mod reference;
 pub mod registry;
 pub mod rsmp;
 pub mod shape_modes;
+pub mod sides;
 pub mod spread;
 pub mod stored;
 mod targets_report;
@@ -305,6 +306,11 @@ pub struct ModelSummary {
     /// How each generator's KL weight was chosen on held-out folds (empty: as given).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub beta_choices: Vec<beta_choice::BetaChoice>,
+    /// Positions (in the training order) of the training meshes registered as their mirror
+    /// images, so that every shape takes the side of the alignment reference (`mirror`);
+    /// empty for models fitted without it.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub mirrored_training: Vec<usize>,
 }
 
 /// The soft clusters of a multi-atlas fit (thesis eq. 5.13), in mesh order.

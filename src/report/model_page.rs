@@ -159,6 +159,26 @@ fn atlas_sentence(s: &ModelSummary) -> String {
     )
 }
 
+/// Which training meshes were registered as their mirror images (empty without any).
+fn mirrored_note(m: &ModelPage<'_>) -> String {
+    let positions = &m.summary.mirrored_training;
+    if positions.is_empty() {
+        return String::new();
+    }
+    let ids: Vec<String> = positions
+        .iter()
+        .filter_map(|k| m.training_mesh_ids.get(*k).map(|id| escape(id)))
+        .collect();
+    format!(
+        "<p class=\"note\">{} of the {} training meshes were registered as their mirror \
+         images (<code>mirror</code>), so that all are learned on the side of the alignment \
+         reference, which every member takes: {}.</p>",
+        positions.len(),
+        m.training_mesh_ids.len(),
+        ids.join(", ")
+    )
+}
+
 /// Each atlas (vertices, faces, Euler characteristic, prior) and, for a multi-atlas
 /// model, the soft weight of every mesh in every cluster.
 fn clusters_section(m: &ModelPage<'_>) -> String {
@@ -190,6 +210,7 @@ fn clusters_section(m: &ModelPage<'_>) -> String {
         );
     }
     t.push_str("</table>");
+    t.push_str(&mirrored_note(m));
     let Some(c) = &s.clusters else {
         t.push_str("<p class=\"note\">One atlas: every mesh is in cluster 0.</p>");
         return t;

@@ -263,6 +263,29 @@ mod tests {
     }
 
     #[test]
+    fn the_mirrored_training_meshes_are_named() {
+        fn html(s: &ModelSummary, ids: &[String]) -> String {
+            model_page(&ModelPage {
+                training_mesh_ids: ids,
+                ..page(s)
+            })
+        }
+        let mut s = summary();
+        let ids = ["a".to_owned(), "b".to_owned(), "c".to_owned()];
+        assert!(!html(&s, &ids).contains("mirror images"));
+        s.mirrored_training = vec![0, 2];
+        let html = html(&s, &ids);
+        assert!(
+            html.contains("2 of the 3 training meshes were registered as their mirror images"),
+            "{html}"
+        );
+        assert!(
+            html.contains("which every member takes: a, c.</p>"),
+            "{html}"
+        );
+    }
+
+    #[test]
     fn missing_plots_say_why() {
         let s = summary();
         let m = page(&s);

@@ -8,12 +8,14 @@ use super::embeddings::Embeddings;
 pub(crate) use super::generator::{GeneratorData, train_generator};
 use super::init::{AtlasInit, initial_atlas};
 use super::learn::{LearnedAtlas, ShapeInput, learn_atlas};
-use super::model::{AsmgModel, align, embed_mesh, embeddings_of, nn_error};
+use super::model::{AsmgModel, embed_mesh, embeddings_of, nn_error};
 use super::monitor::StageMonitor;
 use super::params::{AsmgParams, AtlasChoice};
+use super::registration::{align_sides, side_candidates};
 use crate::mesh::Mesh;
 use crate::models::alignment::{median_resolution_index, simplified};
 use crate::models::progress::{Progress, Stages};
+use crate::models::sides::choose_sides;
 use crate::models::workers::map_items;
 use crate::models::{FitInput, FittedParts, LossCurve, ModelError};
 use crate::nn::{GraphSample, GraphVaeConfig, GraphVaeTraining, TrainedGraphVae, train_graph_vae};
@@ -39,9 +41,18 @@ pub(crate) struct Aligned {
     pub(crate) meshes: Vec<Mesh>,
     /// All original vertices of each training mesh in the model frame.
     pub(crate) vertices: Vec<Vec<[f64; 3]>>,
+    /// Which training meshes were registered as their mirror images.
+    pub(crate) mirrored: Vec<bool>,
 }
 
 impl Aligned {
+    /// Positions of the meshes registered as their mirror images.
+    pub(crate) fn mirrored_positions(&self) -> Vec<usize> {
+        (0..self.mirrored.len())
+            .filter(|k| self.mirrored[*k])
+            .collect()
+    }
+
     /// The graphs of the simplified meshes, with the fit's features.
     pub(crate) fn samples(&self, params: &AsmgParams) -> Vec<GraphSample> {
         self.meshes
@@ -87,17 +98,28 @@ pub(crate) fn align_training(
     let total = training.len() as u64;
     let registered = map_items(
         training,
-        |mesh| align(&reference, mesh, &alignment, params.max_vertices),
+        |mesh| align_sides(&reference, mesh, &alignment, params.max_vertices),
         |done| {
             let message = format!("registered training mesh {done} of {total}");
             Ok(stages.report(progress, done as u64, total, message, None)?)
         },
     )?;
-    let (meshes, vertices) = registered.into_iter().unzip();
+    let candidates: Option<Vec<_>> = registered.iter().map(|s| side_candidates(s)).collect();
+    let mirrored = match candidates {
+        Some(c) => choose_sides(&c, reference_index)?,
+        None => vec![false; registered.len()],
+    };
+    let (mut meshes, mut vertices) = (Vec::new(), Vec::new());
+    for (mut sides, take_mirrored) in registered.into_iter().zip(&mirrored) {
+        let chosen = sides.swap_remove(usize::from(*take_mirrored).min(sides.len() - 1));
+        meshes.push(chosen.mesh);
+        vertices.push(chosen.vertices);
+    }
     Ok(Aligned {
         reference,
         meshes,
         vertices,
+        mirrored,
     })
 }
 
@@ -290,6 +312,7 @@ pub(crate) fn train_generator_and_build(
     losses.push(trained.curve);
     Ok(FittedParts {
         model: trained.model,
+        mirrored_training: aligned.mirrored_positions(),
         aligned_training: aligned.vertices,
         // The members are compared with these (same atlas vertices, model frame, mm).
         normalised: vec![smoothed],

@@ -36,6 +36,7 @@ pub mod nonrigid;
 mod parallel;
 pub mod params;
 mod pose;
+pub mod registration;
 mod scores;
 pub mod smoothing;
 pub mod soft_clusters;

@@ -20,11 +20,12 @@ use super::embeddings::Embeddings;
 use super::learn::{ShapeInput, normalise_shapes};
 use super::nonrigid::refine_normalised;
 use super::params::AsmgParams;
+use super::registration::align;
 use super::smoothing::Smoother;
 use crate::geometry::cpd::NonRigidParams;
 use crate::geometry::pca::Sampling;
 use crate::mesh::Mesh;
-use crate::models::alignment::{self, AlignmentParams, simplified};
+use crate::models::alignment::AlignmentParams;
 use crate::models::stored::{FittedModel, encode_named};
 use crate::models::{Draw, ModelError, Reconstruction, ShapeModel, StandardLatent, check_cluster};
 use crate::nn::{
@@ -151,23 +152,6 @@ pub(crate) fn nn_error(e: NnError) -> ModelError {
         NnError::Weights(_) => ModelError::Corrupt(e.to_string()),
         other => ModelError::InvalidInput(other.to_string()),
     }
-}
-
-/// A mesh registered rigidly to `reference`: the simplified mesh in the model frame (for the
-/// networks) and all original vertices in the model frame (mm).
-pub fn align(
-    reference: &Mesh,
-    mesh: &Mesh,
-    alignment: &AlignmentParams,
-    max_vertices: usize,
-) -> Result<(Mesh, Vec<[f64; 3]>), ModelError> {
-    let small = simplified(mesh, max_vertices)?;
-    let cpd = alignment::register(&reference.vertices, &small.vertices, alignment)?;
-    let back = |v: &[[f64; 3]]| -> Vec<[f64; 3]> {
-        v.iter().map(|p| cpd.transform.inverse_apply(*p)).collect()
-    };
-    let aligned_small = Mesh::new(back(&small.vertices), small.faces.clone());
-    Ok((aligned_small, back(&mesh.vertices)))
 }
 
 /// Flattened `[x0, y0, z0, x1, …]` in `f32`.
@@ -412,6 +396,7 @@ impl ShapeModel for AsmgModel {
             mesh,
             &self.alignment,
             self.params.max_vertices,
+            &[&self.atlas.vertices],
         )?;
         let normalised = self.normalise_aligned(&aligned)?;
         let mesh = self.regenerate(&normalised)?;

@@ -336,6 +336,7 @@ fn fit(
     };
     Ok(FittedParts {
         model,
+        mirrored_training: aligned.mirrored_positions(),
         aligned_training: aligned.vertices,
         // Members of cluster m are compared with every training shape on atlas m.
         normalised: memberships.smoothed,

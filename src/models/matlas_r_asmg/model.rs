@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use crate::geometry::pca::Sampling;
 use crate::mesh::Mesh;
 use crate::models::asmg::AsmgModel;
-use crate::models::asmg::model::align;
+use crate::models::asmg::registration::align;
 use crate::models::asmg::soft_clusters::{atlas_distance, weights_at};
 use crate::models::clusters::winning_cluster;
 use crate::models::stored::{FittedModel, encode_named};
@@ -80,11 +80,17 @@ impl MatlasModel {
 
     fn place(&self, mesh: &Mesh) -> Result<Placed, ModelError> {
         let first = &self.parts[0];
+        let atlases: Vec<&[[f64; 3]]> = self
+            .parts
+            .iter()
+            .map(|p| p.atlas.vertices.as_slice())
+            .collect();
         let (aligned, aligned_input) = align(
             &first.reference,
             mesh,
             &first.alignment,
             first.params.max_vertices,
+            &atlases,
         )?;
         let normalised = self
             .parts

@@ -362,6 +362,7 @@ fn fit(
         losses: Vec::new(),
         clusters: None,
         beta_choices: Vec::new(),
+        mirrored_training: Vec::new(),
     })
 }
 
