@@ -48,10 +48,7 @@ fn aligned_meshes(count: usize, seed: u64, params: &AsmgParams) -> Vec<Mesh> {
     {
         return cached;
     }
-    let meshes: Vec<Mesh> = phantom::generate(Family::Lv, count, seed)
-        .into_iter()
-        .map(|p| p.mesh)
-        .collect();
+    let meshes: Vec<Mesh> = phantom::meshes(Family::Lv, count, seed);
     let started = Instant::now();
     let reference = simplified(
         &meshes[median_resolution_index(&meshes)],

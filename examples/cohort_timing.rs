@@ -27,10 +27,7 @@ fn main() {
         args.get(1).copied().unwrap_or(1000),
         args.get(2).copied().unwrap_or(1) as u64,
     );
-    let meshes: Vec<_> = phantom::generate(Family::Lv, count, seed)
-        .into_iter()
-        .map(|p| p.mesh)
-        .collect();
+    let meshes: Vec<_> = phantom::meshes(Family::Lv, count, seed);
     let params = RsmpParams {
         cpd_max_iterations: 40,
         ..RsmpParams::default()

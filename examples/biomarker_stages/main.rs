@@ -58,10 +58,7 @@ fn main() {
             .take(count)
             .map(|m| m.mesh)
             .collect(),
-        Err(_) => phantom::generate(Family::Lv, count, seed)
-            .into_iter()
-            .map(|p| p.mesh)
-            .collect(),
+        Err(_) => phantom::meshes(Family::Lv, count, seed),
     };
     let input = FitInput {
         training: &meshes,

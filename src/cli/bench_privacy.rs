@@ -84,10 +84,7 @@ mod tests {
 
     #[test]
     fn a_training_patient_comes_back_flagged_and_a_new_one_is_measured() {
-        let meshes: Vec<Mesh> = phantom::generate(Family::Lv, 8, 3)
-            .into_iter()
-            .map(|p| p.mesh)
-            .collect();
+        let meshes: Vec<Mesh> = phantom::meshes(Family::Lv, 8, 3);
         let (training, holdout) = meshes.split_at(6);
         let outcome = fitted("rsmp", training, serde_json::Value::Null);
         let stored = &outcome.model;

@@ -114,10 +114,7 @@ mod tests {
 
     #[test]
     fn stored_populations_keep_the_axes_they_were_measured_along() {
-        let meshes: Vec<Mesh> = phantom::generate(Family::Lv, 3, 5)
-            .into_iter()
-            .map(|p| p.mesh)
-            .collect();
+        let meshes: Vec<Mesh> = phantom::meshes(Family::Lv, 3, 5);
         let population = ReferencePopulation::from_meshes(&meshes).unwrap();
         assert_eq!(population.extent_axes, ExtentAxes::Surface);
         // A population stored before the field existed was measured along vertex axes,

@@ -165,6 +165,14 @@ pub fn generate(family: Family, count: usize, seed: u64) -> Vec<Phantom> {
     (0..count).map(|i| subject(family, seed, i)).collect()
 }
 
+/// The meshes of [`generate`]'s phantoms (mm), without their parameters.
+pub fn meshes(family: Family, count: usize, seed: u64) -> Vec<Mesh> {
+    generate(family, count, seed)
+        .into_iter()
+        .map(|p| p.mesh)
+        .collect()
+}
+
 /// Generates subject `index` of a family under a seed.
 pub fn subject(family: Family, seed: u64, index: usize) -> Phantom {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);

@@ -45,10 +45,7 @@ fn fit(
 }
 
 fn phantoms(count: usize) -> Vec<Mesh> {
-    phantom::generate(Family::Lv, count, 11)
-        .into_iter()
-        .map(|p| p.mesh)
-        .collect()
+    phantom::meshes(Family::Lv, count, 11)
 }
 
 #[test]

@@ -141,10 +141,7 @@ fn two_atlases_find_the_two_topologies_and_draw_from_each() {
 
 #[test]
 fn one_atlas_is_atlas_r_asmg() {
-    let meshes: Vec<Mesh> = phantom::generate(Family::Lv, 6, 11)
-        .into_iter()
-        .map(|p| p.mesh)
-        .collect();
+    let meshes: Vec<Mesh> = phantom::meshes(Family::Lv, 6, 11);
     let (training, holdout) = meshes.split_at(5);
     // "auto" gives five training meshes one atlas: too few for a generator per cluster.
     // Both deform their normalised shapes onto the meshes (`nonrigid`), and do it alike.

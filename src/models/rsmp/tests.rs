@@ -6,10 +6,7 @@ use crate::models::{ModelType, StoredModel};
 
 #[test]
 fn fit_samples_and_reconstructs_phantoms() {
-    let meshes: Vec<Mesh> = phantom::generate(Family::Lv, 8, 3)
-        .into_iter()
-        .map(|p| p.mesh)
-        .collect();
+    let meshes: Vec<Mesh> = phantom::meshes(Family::Lv, 8, 3);
     let (training, holdout) = meshes.split_at(6);
     let started = std::time::Instant::now();
     let input = FitInput {
@@ -141,10 +138,7 @@ fn fit_samples_and_reconstructs_phantoms() {
 
 #[test]
 fn meshes_above_the_vertex_budget_are_registered_simplified() {
-    let meshes: Vec<Mesh> = phantom::generate(Family::Lv, 7, 4)
-        .into_iter()
-        .map(|p| p.mesh)
-        .collect();
+    let meshes: Vec<Mesh> = phantom::meshes(Family::Lv, 7, 4);
     let budget = 600;
     assert!(meshes.iter().all(|m| m.vertex_count() > budget));
     let (training, holdout) = meshes.split_at(6);
