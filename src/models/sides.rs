@@ -10,6 +10,7 @@
 //!
 //! Points are in the reference's frame, mm.
 
+use crate::eval::metrics::parallel_map;
 use crate::geometry::GeometryError;
 use crate::geometry::distance::directed;
 use crate::geometry::kdtree::PointCloudIndex;
@@ -56,24 +57,32 @@ pub fn choose_sides(
 ) -> Result<Vec<bool>, GeometryError> {
     let indexed = candidates
         .iter()
-        .map(|c| Ok((Indexed::new(&c.own)?, Indexed::new(&c.mirrored)?)))
+        .map(|c| Ok([Indexed::new(&c.own)?, Indexed::new(&c.mirrored)?]))
         .collect::<Result<Vec<_>, GeometryError>>()?;
-    let Some((anchor, _)) = indexed.get(reference) else {
-        return Ok(vec![false; candidates.len()]);
-    };
-    let mut mirrored: Vec<bool> = indexed
-        .iter()
-        .map(|(own, flipped)| flipped.distance(anchor) < own.distance(anchor))
+    let n = indexed.len();
+    if reference >= n {
+        return Ok(vec![false; n]);
+    }
+    // distance[i][j][2·a + b]: mesh i taken as side a (0 own, 1 mirrored) against mesh j
+    // taken as side b, computed once for all sweeps.
+    let rows: Vec<usize> = (0..n).collect();
+    let distance: Vec<Vec<[f64; 4]>> = parallel_map(&rows, |&i| {
+        (0..n)
+            .map(|j| std::array::from_fn(|k| indexed[i][k / 2].distance(&indexed[j][k % 2])))
+            .collect()
+    });
+    let mut mirrored: Vec<bool> = (0..n)
+        .map(|i| distance[i][reference][2] < distance[i][reference][0])
         .collect();
     mirrored[reference] = false;
     for _ in 0..MAX_SWEEPS {
         let mut changed = false;
-        for i in (0..indexed.len()).filter(|i| *i != reference) {
+        for i in (0..n).filter(|i| *i != reference) {
             let (mut own, mut flipped) = (0.0, 0.0);
-            for (j, (a, b)) in indexed.iter().enumerate().filter(|(j, _)| *j != i) {
-                let taken = if mirrored[j] { b } else { a };
-                own += indexed[i].0.distance(taken);
-                flipped += indexed[i].1.distance(taken);
+            for j in (0..n).filter(|j| *j != i) {
+                let taken = usize::from(mirrored[j]);
+                own += distance[i][j][taken];
+                flipped += distance[i][j][2 + taken];
             }
             let choice = flipped < own;
             changed |= choice != mirrored[i];
