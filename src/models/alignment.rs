@@ -218,8 +218,8 @@ pub struct Registration {
     /// Maps template points onto the registered points: the mesh's vertices, or their
     /// mirror images when `mirrored`.
     pub cpd: CpdResult,
-    /// The mesh was mirrored (x → −x) before it was registered, because its mirror image
-    /// fits the template clearly better (a left kidney against a right one).
+    /// The mesh was mirrored (x → −x) before it was registered: a left kidney laid onto a
+    /// right one (which side each mesh takes: [`crate::models::sides`]).
     pub mirrored: bool,
 }
 
@@ -227,11 +227,6 @@ impl Registration {
     /// A point of the mesh (mm) as it was registered: mirrored when the mesh was.
     pub fn registered(&self, p: [f64; 3]) -> [f64; 3] {
         if self.mirrored { mirror(p) } else { p }
-    }
-
-    /// Points of the mesh (mm) as they were registered.
-    pub fn registered_points(&self, points: &[[f64; 3]]) -> Vec<[f64; 3]> {
-        points.iter().map(|p| self.registered(*p)).collect()
     }
 
     /// A point of the mesh (mm) in the template frame.
