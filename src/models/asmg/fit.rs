@@ -111,7 +111,7 @@ pub(crate) fn align_training(
     };
     let (mut meshes, mut vertices) = (Vec::new(), Vec::new());
     for (mut sides, take_mirrored) in registered.into_iter().zip(&mirrored) {
-        let chosen = sides.swap_remove(usize::from(*take_mirrored).min(sides.len() - 1));
+        let chosen = sides.swap_remove(usize::from(*take_mirrored));
         meshes.push(chosen.mesh);
         vertices.push(chosen.vertices);
     }

@@ -13,8 +13,6 @@ pub struct AlignedMesh {
     pub mesh: Mesh,
     /// All original vertices (mm).
     pub vertices: Vec<[f64; 3]>,
-    /// Registered as its mirror image.
-    pub mirrored: bool,
 }
 
 /// `small` (the simplified `mesh`) registered to `reference`, as it is or mirrored.
@@ -40,7 +38,6 @@ fn aligned_as(
     Ok(AlignedMesh {
         mesh: Mesh::new(frame(&small.vertices), registration.faces(&small.faces)),
         vertices: frame(&mesh.vertices),
-        mirrored,
     })
 }
 
@@ -86,10 +83,6 @@ pub fn align(
         Some(candidates) => nearer_mirrored(&candidates, atlases)?,
         None => false,
     };
-    let chosen = if take_mirrored {
-        sides.swap_remove(1)
-    } else {
-        sides.swap_remove(0)
-    };
+    let chosen = sides.swap_remove(usize::from(take_mirrored));
     Ok((chosen.mesh, chosen.vertices))
 }
