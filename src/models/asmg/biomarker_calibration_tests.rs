@@ -164,3 +164,69 @@ fn draws_get_the_measured_biomarkers_of_the_training_meshes_when_given() {
         );
     }
 }
+
+/// Each draw's calibrated biomarkers as the map gives them, `[draws][2]`.
+fn targets(c: &BiomarkerCalibration, drawn: &[Vec<f32>], faces: &[[u32; 3]]) -> Vec<[f64; 2]> {
+    drawn
+        .iter()
+        .map(|d| {
+            let b = biomarkers(d, faces);
+            let dev = [b[0] - c.drawn_mean[0], b[1] - c.drawn_mean[1]];
+            [0, 1].map(|k| c.target_mean[k] + c.map[k][0] * dev[0] + c.map[k][1] * dev[1])
+        })
+        .collect()
+}
+
+/// The share of draws whose calibrated volume and area are both within `tolerance`
+/// (relative) of their targets.
+fn share_on_target(
+    c: &BiomarkerCalibration,
+    drawn: &[Vec<f32>],
+    faces: &[[u32; 3]],
+    tolerance: f64,
+) -> f64 {
+    let wanted = targets(c, drawn, faces);
+    let hits = calibrated(c, drawn, faces)
+        .iter()
+        .zip(&wanted)
+        .filter(|(s, t)| {
+            let b = biomarkers(s, faces);
+            (0..2).all(|k| ((b[k] - t[k]) / t[k]).abs() <= tolerance)
+        })
+        .count();
+    hits as f64 / drawn.len() as f64
+}
+
+#[test]
+fn repeated_moves_put_the_draws_on_their_targets() {
+    let faces = box_faces();
+    // Volume is cubic in the sides: one move along the regression lands beside the target.
+    let drawn = boxes(400, 0.5, 9);
+    let c = BiomarkerCalibration::fit(&boxes(200, 1.0, 8), None, &[], &drawn, &faces).unwrap();
+    assert_eq!(c.steps, CALIBRATION_STEPS);
+    let one = BiomarkerCalibration {
+        steps: 1,
+        ..c.clone()
+    };
+    let single = share_on_target(&one, &drawn, &faces, 1e-4);
+    let repeated = share_on_target(&c, &drawn, &faces, 1e-4);
+    assert!(single < 0.05, "one move: {single} on target");
+    assert!(repeated > 0.9, "repeated moves: {repeated} on target");
+}
+
+#[test]
+fn a_calibration_stored_without_steps_moves_once() {
+    let faces = box_faces();
+    let c = BiomarkerCalibration::fit(&boxes(200, 1.5, 10), None, &[], &boxes(50, 0.4, 11), &faces)
+        .unwrap();
+    let mut stored = serde_json::to_value(&c).unwrap();
+    stored.as_object_mut().unwrap().remove("steps");
+    let read: BiomarkerCalibration = serde_json::from_value(stored).unwrap();
+    assert_eq!(read.steps, 1);
+    let one = BiomarkerCalibration { steps: 1, ..c };
+    let drawn = boxes(50, 0.4, 11);
+    assert_eq!(
+        calibrated(&read, &drawn, &faces),
+        calibrated(&one, &drawn, &faces)
+    );
+}
