@@ -176,45 +176,56 @@ impl BiomarkerCalibration {
         if self.directions.iter().any(|d| d.len() != shape.len()) {
             return;
         }
-        let b = biomarkers(shape, faces);
-        let deviation = [b[0] - self.drawn_mean[0], b[1] - self.drawn_mean[1]];
-        let target: [f64; BIOMARKERS] = std::array::from_fn(|k| {
-            self.target_mean[k] + self.map[k][0] * deviation[0] + self.map[k][1] * deviation[1]
-        });
-        self.move_by(shape, [target[0] - b[0], target[1] - b[1]]);
+        let drawn = biomarkers(shape, faces);
+        let target = self.target(&drawn);
+        self.move_by(shape, [target[0] - drawn[0], target[1] - drawn[1]]);
+        if self.steps <= 1 {
+            return;
+        }
+        let mut b = biomarkers(shape, faces);
         for _ in 1..self.steps {
-            if !self.newton_move(shape, faces, &target) {
-                break;
+            match self.newton_move(shape, faces, &target, &b) {
+                Some(moved) => b = moved,
+                None => break,
             }
         }
     }
 
-    /// Moves a shape by the change along the directions that their measured effect on its
-    /// volume and area says meets `target`, halved while that would leave it farther away.
-    /// False when the shape is already on target or no move brings it nearer.
+    /// The calibrated biomarkers of a draw whose uncalibrated ones are `b`:
+    /// `target_mean + map · (b − drawn_mean)` (ml, cm²).
+    pub fn target(&self, b: &[f64; BIOMARKERS]) -> [f64; BIOMARKERS] {
+        let deviation = [b[0] - self.drawn_mean[0], b[1] - self.drawn_mean[1]];
+        std::array::from_fn(|k| {
+            self.target_mean[k] + self.map[k][0] * deviation[0] + self.map[k][1] * deviation[1]
+        })
+    }
+
+    /// Moves a shape whose biomarkers are `b` by the change along the directions that their
+    /// measured effect on its volume and area says meets `target`, halved while that would
+    /// leave it farther away; its new biomarkers. None when the shape is already on target
+    /// or no move brings it nearer.
     fn newton_move(
         &self,
         shape: &mut [f32],
         faces: &[[u32; 3]],
         target: &[f64; BIOMARKERS],
-    ) -> bool {
-        let b = biomarkers(shape, faces);
-        let before = miss(&b, target);
+        b: &[f64; BIOMARKERS],
+    ) -> Option<[f64; BIOMARKERS]> {
+        let before = miss(b, target);
         if before <= TOLERANCE {
-            return false;
+            return None;
         }
-        let Some(inverse) = self.effect(shape, faces, &b, target).try_inverse() else {
-            return false;
-        };
+        let inverse = self.effect(shape, faces, b, target).try_inverse()?;
         let change = inverse * Vector2::new(target[0] - b[0], target[1] - b[1]);
         let previous = shape.to_vec();
-        let nearer = (0..HALVINGS).any(|halving| {
+        let nearer = (0..HALVINGS).find_map(|halving| {
             let factor = 0.5_f64.powi(halving);
             shape.copy_from_slice(&previous);
             self.move_by(shape, [factor * change[0], factor * change[1]]);
-            miss(&biomarkers(shape, faces), target) < before
+            let moved = biomarkers(shape, faces);
+            (miss(&moved, target) < before).then_some(moved)
         });
-        if !nearer {
+        if nearer.is_none() {
             shape.copy_from_slice(&previous);
         }
         nearer

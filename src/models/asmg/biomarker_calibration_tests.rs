@@ -169,11 +169,7 @@ fn draws_get_the_measured_biomarkers_of_the_training_meshes_when_given() {
 fn targets(c: &BiomarkerCalibration, drawn: &[Vec<f32>], faces: &[[u32; 3]]) -> Vec<[f64; 2]> {
     drawn
         .iter()
-        .map(|d| {
-            let b = biomarkers(d, faces);
-            let dev = [b[0] - c.drawn_mean[0], b[1] - c.drawn_mean[1]];
-            [0, 1].map(|k| c.target_mean[k] + c.map[k][0] * dev[0] + c.map[k][1] * dev[1])
-        })
+        .map(|d| c.target(&biomarkers(d, faces)))
         .collect()
 }
 
