@@ -29,6 +29,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
+mod bias;
 mod stretch;
 use stretch::{biomarker_stretched, quantile_matched};
 
@@ -129,6 +130,7 @@ fn main() {
         .collect();
     reference.print("  within", &within, Some(&mean_axis));
     if let Some(asmg) = stored.model.as_any().downcast_ref::<AsmgModel>() {
+        bias::print_bias(asmg, &meshes, draws, seed);
         for t in temperatures() {
             let tempered = tempered_draws(asmg, t, draws, seed);
             reference.print(&format!("draws, latent x{t}"), &tempered, Some(&mean_axis));

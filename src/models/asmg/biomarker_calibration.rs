@@ -105,8 +105,8 @@ impl BiomarkerCalibration {
     /// Fits the calibration from the training shapes (each with a weight, `None`: equal),
     /// the biomarkers of their meshes (the targets; the shapes' own when `measured` is not
     /// one row per shape), uncalibrated draws and the atlas faces. `None` when there are too
-    /// few shapes or draws, or when volume and area do not vary independently in the
-    /// training shapes (their covariance is singular).
+    /// few shapes or draws, a draw has another width than the shapes, or volume and area do
+    /// not vary independently in the training shapes (their covariance is singular).
     pub fn fit(
         training: &[Vec<f32>],
         weights: Option<&[f32]>,
@@ -114,11 +114,31 @@ impl BiomarkerCalibration {
         drawn: &[Vec<f32>],
         faces: &[[u32; 3]],
     ) -> Option<Self> {
+        let dim = training.first()?.len();
+        if drawn.iter().any(|d| d.len() != dim) {
+            return None;
+        }
+        let drawn_rows: Vec<_> = drawn.iter().map(|x| biomarkers(x, faces)).collect();
+        Self::fit_to_drawn_biomarkers(training, weights, measured, &drawn_rows, faces)
+    }
+
+    /// [`Self::fit`] from the (volume ml, area cm²) of the uncalibrated draws instead of the
+    /// draws themselves.
+    pub fn fit_to_drawn_biomarkers(
+        training: &[Vec<f32>],
+        weights: Option<&[f32]>,
+        measured: &[[f64; BIOMARKERS]],
+        drawn_rows: &[[f64; BIOMARKERS]],
+        faces: &[[u32; 3]],
+    ) -> Option<Self> {
+        if drawn_rows.len() < 3 {
+            return None;
+        }
         let WeightedShapes {
             w,
             total,
             mean: x_mean,
-        } = WeightedShapes::of(training, weights, drawn)?;
+        } = WeightedShapes::of(training, weights)?;
         let dim = x_mean.len();
         let trained: Vec<_> = training.iter().map(|x| biomarkers(x, faces)).collect();
         let (shape_mean, biased_cov, unbias) = moments(&trained, &w);
@@ -155,8 +175,8 @@ impl BiomarkerCalibration {
                     .collect()
             })
             .collect();
-        let drawn_rows: Vec<_> = drawn.iter().map(|x| biomarkers(x, faces)).collect();
-        let (drawn_mean, drawn_cov, drawn_unbias) = moments(&drawn_rows, &vec![1.0; drawn.len()]);
+        let (drawn_mean, drawn_cov, drawn_unbias) =
+            moments(drawn_rows, &vec![1.0; drawn_rows.len()]);
         let map = transport_map(drawn_cov * drawn_unbias, &(target_cov * unbias));
         Some(Self {
             directions,

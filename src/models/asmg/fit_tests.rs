@@ -310,6 +310,18 @@ fn biomarker_calibration_gives_draws_the_training_volume_and_area() {
             "{k}: {after} vs {target}"
         );
     }
+    // The calibration's draws come in pairs mirrored about the latent prior's centre, so
+    // that what is linear in the code cancels from `drawn_mean`.
+    let prior = model.latent_prior.as_ref().expect("a latent prior");
+    let pairs = model.antithetic_codes(&mut draw_rng(12, 0), 6);
+    assert_eq!(pairs.len(), 6);
+    for pair in pairs.chunks_exact(2) {
+        assert_ne!(pair[0], pair[1]);
+        for (i, centre) in prior.centre.iter().enumerate() {
+            let midpoint = 0.5 * (pair[0][i] + pair[1][i]);
+            assert!((midpoint - centre).abs() < 1e-5, "{midpoint} vs {centre}");
+        }
+    }
 }
 
 /// A mesh's mirror image (x → −x, each triangle's winding reversed so that the surface

@@ -299,7 +299,7 @@ impl AsmgModel {
 
     /// The latent code of a standard-normal vector `ε` (`[L]`): through the latent
     /// Gaussian fitted to the training codes, or `ε` itself for models without one.
-    fn code_of(&self, standard: Vec<f32>) -> Vec<f32> {
+    pub(super) fn code_of(&self, standard: Vec<f32>) -> Vec<f32> {
         match &self.latent_prior {
             Some(prior) if prior.centre.len() == standard.len() => prior.code(&standard),
             _ => standard,
