@@ -2,8 +2,8 @@
 //! biomarkers: a linear stretch to a share of the training meshes' covariance, and a
 //! rank-for-rank match of each biomarker's marginal (experiments beside the calibration).
 
-use cohortforge::eval::stats;
 use cohortforge::mesh::Mesh;
+use cohortforge::models::asmg::marginal_map::MarginalMap;
 use nalgebra::{DMatrix, DVector};
 
 use super::{row, vertex_count};
@@ -123,45 +123,11 @@ pub fn quantile_matched(
         .collect()
 }
 
-/// For each value of `drawn`, the quantile of the same rank of a Gaussian kernel density of
-/// `reference` (Silverman's bandwidth), shrunk about its mean to the reference's sd.
+/// Each value of `drawn` through the model's quantile map from the draws' distribution to a
+/// smoothed density of `reference` (the values themselves where no map can be fitted).
 fn rank_matched(drawn: &[f64], reference: &[f64]) -> Vec<f64> {
-    let n = reference.len() as f64;
-    let mean = stats::mean(reference);
-    let sd = stats::sample_sd(reference);
-    let h = 1.06 * sd * n.powf(-0.2);
-    let shrink = sd / (sd * sd + h * h).sqrt();
-    let cdf = |x: f64| {
-        reference
-            .iter()
-            .map(|r| 0.5 * (1.0 + erf((x - r) / (h * std::f64::consts::SQRT_2))))
-            .sum::<f64>()
-            / n
-    };
-    let quantile = |q: f64| {
-        let (mut lo, mut hi) = (mean - 10.0 * sd, mean + 10.0 * sd);
-        for _ in 0..60 {
-            let mid = 0.5 * (lo + hi);
-            if cdf(mid) < q { lo = mid } else { hi = mid }
-        }
-        mean + shrink * (0.5 * (lo + hi) - mean)
-    };
-    let mut order: Vec<usize> = (0..drawn.len()).collect();
-    order.sort_by(|&a, &b| drawn[a].total_cmp(&drawn[b]));
-    let mut out = vec![0.0; drawn.len()];
-    for (rank, &i) in order.iter().enumerate() {
-        out[i] = quantile((rank as f64 + 0.5) / drawn.len() as f64);
+    match MarginalMap::fit(drawn, reference, &vec![1.0; reference.len()]) {
+        Some(map) => drawn.iter().map(|x| map.apply(*x)).collect(),
+        None => drawn.to_vec(),
     }
-    out
-}
-
-/// Error function (Abramowitz and Stegun 7.1.26, |error| < 1.5e-7).
-fn erf(x: f64) -> f64 {
-    let t = 1.0 / (1.0 + 0.327_591_1 * x.abs());
-    let y = 1.0
-        - (((((1.061_405_429 * t - 1.453_152_027) * t) + 1.421_413_741) * t - 0.284_496_736) * t
-            + 0.254_829_592)
-            * t
-            * (-x * x).exp();
-    y.copysign(x)
 }

@@ -6,7 +6,9 @@
 //! moved along the direction in which the training shapes change with volume and area (their
 //! regression on the two) until the draws' volume and area have the mean and covariance of the
 //! training meshes' (the patients', not those of their normalised shapes, which the atlas
-//! smoothing shrinks a little). What the draws do in every other direction stays as decoded.
+//! smoothing shrinks a little) and then, biomarker by biomarker, the meshes' distribution (a
+//! quantile map, see [`super::marginal_map`]: an organ's volume is skewed, an affine map's
+//! draws are not). What the draws do in every other direction stays as decoded.
 //!
 //! Shapes are flattened atlas-domain vertex positions `[3·N_μ]` in mm; biomarkers are the
 //! enclosed volume (ml, unsigned) and the surface area (cm²) of a shape with the atlas faces.
@@ -15,6 +17,7 @@ use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 use serde::{Deserialize, Serialize};
 
 use super::calibration::{WeightedShapes, transport_map};
+use super::marginal_map::MarginalMap;
 use crate::mesh::Mesh;
 use crate::mesh::measures::{area_cm2, volume_ml};
 
@@ -39,6 +42,11 @@ pub struct BiomarkerCalibration {
     /// not on it (1 in models stored before this field, which keep drawing as they did).
     #[serde(default = "first_order")]
     pub steps: u32,
+    /// Per biomarker, the quantile map applied after `map` that gives the draws the
+    /// training meshes' distribution, skew included (see [`super::marginal_map`]); `None` in
+    /// models stored before it existed, whose targets stay affine.
+    #[serde(default)]
+    pub marginals: Option<Vec<MarginalMap>>,
 }
 
 /// Most moves per draw for new calibrations: on LV phantoms a few reach the targets to well
@@ -178,13 +186,23 @@ impl BiomarkerCalibration {
         let (drawn_mean, drawn_cov, drawn_unbias) =
             moments(drawn_rows, &vec![1.0; drawn_rows.len()]);
         let map = transport_map(drawn_cov * drawn_unbias, &(target_cov * unbias));
-        Some(Self {
+        let mut calibration = Self {
             directions,
             drawn_mean: [drawn_mean[0], drawn_mean[1]],
             target_mean: [target_mean[0], target_mean[1]],
             map: [[map[(0, 0)], map[(0, 1)]], [map[(1, 0)], map[(1, 1)]]],
             steps: CALIBRATION_STEPS,
-        })
+            marginals: None,
+        };
+        let affine: Vec<_> = drawn_rows.iter().map(|b| calibration.target(b)).collect();
+        calibration.marginals = (0..BIOMARKERS)
+            .map(|k| {
+                let drawn: Vec<f64> = affine.iter().map(|t| t[k]).collect();
+                let training: Vec<f64> = targets.iter().map(|t| t[k]).collect();
+                MarginalMap::fit(&drawn, &training, &w)
+            })
+            .collect();
+        Some(calibration)
     }
 
     /// Moves a drawn shape along the directions so that its biomarkers `b` become
@@ -212,12 +230,19 @@ impl BiomarkerCalibration {
     }
 
     /// The calibrated biomarkers of a draw whose uncalibrated ones are `b`:
-    /// `target_mean + map · (b − drawn_mean)` (ml, cm²).
+    /// `target_mean + map · (b − drawn_mean)` (ml, cm²), then through each biomarker's
+    /// quantile map when the calibration has them.
     pub fn target(&self, b: &[f64; BIOMARKERS]) -> [f64; BIOMARKERS] {
         let deviation = [b[0] - self.drawn_mean[0], b[1] - self.drawn_mean[1]];
-        std::array::from_fn(|k| {
+        let affine: [f64; BIOMARKERS] = std::array::from_fn(|k| {
             self.target_mean[k] + self.map[k][0] * deviation[0] + self.map[k][1] * deviation[1]
-        })
+        });
+        match &self.marginals {
+            Some(maps) if maps.len() == BIOMARKERS => {
+                std::array::from_fn(|k| maps[k].apply(affine[k]))
+            }
+            _ => affine,
+        }
     }
 
     /// Moves a shape whose biomarkers are `b` by the change along the directions that their

@@ -29,6 +29,7 @@ pub mod icosphere;
 pub mod init;
 pub mod laplacian;
 pub mod learn;
+pub mod marginal_map;
 pub mod model;
 mod monitor;
 pub mod multi_atlas;
