@@ -23,7 +23,7 @@ use cohortforge::mesh::phantom::{self, Family};
 use cohortforge::models::asmg::calibration::MAX_GAIN;
 use cohortforge::models::asmg::model::AsmgModel;
 use cohortforge::models::progress::Silent;
-use cohortforge::models::{FitInput, ModelType};
+use cohortforge::models::{FitInput, ModelType, ShapeModel};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -59,7 +59,12 @@ fn main() {
             .take(count)
             .map(|m| m.mesh)
             .collect(),
-        Err(_) => phantom::meshes(Family::Lv, count, seed),
+        Err(_) => {
+            // FAMILY=liver: liver phantoms instead of LV ones.
+            let family =
+                std::env::var("FAMILY").map_or(Family::Lv, |f| f.parse().expect("a family"));
+            phantom::meshes(family, count, seed)
+        }
     };
     let input = FitInput {
         training: &meshes,
@@ -130,6 +135,9 @@ fn main() {
         .collect();
     reference.print("  within", &within, Some(&mean_axis));
     if let Some(asmg) = stored.model.as_any().downcast_ref::<AsmgModel>() {
+        if let Some(d) = affine_draws(asmg, draws, seed) {
+            reference.print("draws, affine targets", &d, Some(&mean_axis));
+        }
         bias::print_bias(asmg, &meshes, draws, seed);
         for t in temperatures() {
             let tempered = tempered_draws(asmg, t, draws, seed);
@@ -183,6 +191,21 @@ fn main() {
             c.residual_gain
         );
     }
+}
+
+/// The same draws with the calibration's affine targets only (no quantile maps), when the
+/// model has maps.
+fn affine_draws(asmg: &AsmgModel, draws: usize, seed: u64) -> Option<Vec<Mesh>> {
+    let mut affine = asmg.clone();
+    let calibration = affine.biomarker_calibration.as_mut()?;
+    calibration.marginals = None;
+    calibration.shape_maps.take()?;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    Some(
+        (0..draws)
+            .map(|_| affine.sample(&mut rng, Default::default()).unwrap().mesh)
+            .collect(),
+    )
 }
 
 /// Latent temperatures from `TEMPERATURES` (comma-separated; none by default).

@@ -6,9 +6,10 @@
 //! moved along the direction in which the training shapes change with volume and area (their
 //! regression on the two) until the draws' volume and area have the mean and covariance of the
 //! training meshes' (the patients', not those of their normalised shapes, which the atlas
-//! smoothing shrinks a little) and then, biomarker by biomarker, the meshes' distribution (a
-//! quantile map, see [`super::marginal_map`]: an organ's volume is skewed, an affine map's
-//! draws are not). What the draws do in every other direction stays as decoded.
+//! smoothing shrinks a little) and then the meshes' distribution of volume and of the shape
+//! index `area / volume^(2/3)` (quantile maps, see [`super::marginal_map`]: an organ's volume
+//! is skewed, an affine map's draws are not). What the draws do in every other direction
+//! stays as decoded.
 //!
 //! Shapes are flattened atlas-domain vertex positions `[3·N_μ]` in mm; biomarkers are the
 //! enclosed volume (ml, unsigned) and the surface area (cm²) of a shape with the atlas faces.
@@ -17,7 +18,7 @@ use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 use serde::{Deserialize, Serialize};
 
 use super::calibration::{WeightedShapes, transport_map};
-use super::marginal_map::MarginalMap;
+use super::marginal_map::{MarginalMap, ShapeMaps};
 use crate::mesh::Mesh;
 use crate::mesh::measures::{area_cm2, volume_ml};
 
@@ -47,6 +48,12 @@ pub struct BiomarkerCalibration {
     /// models stored before it existed, whose targets stay affine.
     #[serde(default)]
     pub marginals: Option<Vec<MarginalMap>>,
+    /// Quantile maps applied after `map` to the volume and to the shape index
+    /// `area / volume^(2/3)`, the area target following from the two (see [`ShapeMaps`]);
+    /// new calibrations have these instead of `marginals`, which mapped volume and area each
+    /// on its own and bent their combination in the tails. `None` in models stored before.
+    #[serde(default)]
+    pub shape_maps: Option<ShapeMaps>,
 }
 
 /// Most moves per draw for new calibrations: on LV phantoms a few reach the targets to well
@@ -193,15 +200,10 @@ impl BiomarkerCalibration {
             map: [[map[(0, 0)], map[(0, 1)]], [map[(1, 0)], map[(1, 1)]]],
             steps: CALIBRATION_STEPS,
             marginals: None,
+            shape_maps: None,
         };
         let affine: Vec<_> = drawn_rows.iter().map(|b| calibration.target(b)).collect();
-        calibration.marginals = (0..BIOMARKERS)
-            .map(|k| {
-                let drawn: Vec<f64> = affine.iter().map(|t| t[k]).collect();
-                let training: Vec<f64> = targets.iter().map(|t| t[k]).collect();
-                MarginalMap::fit(&drawn, &training, &w)
-            })
-            .collect();
+        calibration.shape_maps = ShapeMaps::fit(&affine, targets, &w);
         Some(calibration)
     }
 
@@ -237,6 +239,9 @@ impl BiomarkerCalibration {
         let affine: [f64; BIOMARKERS] = std::array::from_fn(|k| {
             self.target_mean[k] + self.map[k][0] * deviation[0] + self.map[k][1] * deviation[1]
         });
+        if let Some(maps) = &self.shape_maps {
+            return maps.apply(affine).unwrap_or(affine);
+        }
         match &self.marginals {
             Some(maps) if maps.len() == BIOMARKERS => {
                 std::array::from_fn(|k| maps[k].apply(affine[k]))

@@ -199,11 +199,12 @@ fn repeated_moves_put_the_draws_on_their_targets() {
     // Volume is cubic in the sides: one move along the regression lands beside the target.
     let drawn = boxes(400, 0.5, 9);
     let fitted = BiomarkerCalibration::fit(&boxes(200, 1.0, 8), None, &[], &drawn, &faces);
-    // Affine targets: a box's volume and area are tied so closely that with the quantile
-    // maps, which move each alone, a fifth of these draws are still off their targets after
-    // the last move (on 100 LV phantoms every draw meets them).
+    // Affine targets: a box's volume and area are tied so closely that the quantile maps'
+    // targets leave some of these draws off them after the last move (on 100 LV phantoms
+    // every draw meets them).
     let c = BiomarkerCalibration {
         marginals: None,
+        shape_maps: None,
         ..fitted.unwrap()
     };
     assert_eq!(c.steps, CALIBRATION_STEPS);
@@ -261,9 +262,9 @@ fn draws_take_the_skew_of_the_training_volumes() {
     let training = skewed_boxes(300, 12);
     let drawn = boxes(3000, 0.5, 13);
     let c = BiomarkerCalibration::fit(&training, None, &[], &drawn, &faces).unwrap();
-    assert!(c.marginals.is_some());
+    assert!(c.shape_maps.is_some());
     let affine_only = BiomarkerCalibration {
-        marginals: None,
+        shape_maps: None,
         ..c.clone()
     };
     let fresh = boxes(1000, 0.5, 14);
@@ -285,8 +286,14 @@ fn draws_take_the_skew_of_the_training_volumes() {
     assert!((m_sd / t_sd - 1.0).abs() < 0.08, "{m_sd} vs {t_sd}");
 }
 
+/// The affine target of a draw whose biomarkers are `b`.
+fn affine_target(c: &BiomarkerCalibration, b: [f64; 2]) -> [f64; 2] {
+    let d = [b[0] - c.drawn_mean[0], b[1] - c.drawn_mean[1]];
+    [0, 1].map(|k| c.target_mean[k] + c.map[k][0] * d[0] + c.map[k][1] * d[1])
+}
+
 #[test]
-fn a_calibration_stored_without_marginals_keeps_affine_targets() {
+fn a_calibration_stored_without_maps_keeps_affine_targets() {
     let faces = box_faces();
     let c = BiomarkerCalibration::fit(
         &skewed_boxes(100, 15),
@@ -298,13 +305,95 @@ fn a_calibration_stored_without_marginals_keeps_affine_targets() {
     .unwrap();
     let mut stored = serde_json::to_value(&c).unwrap();
     stored.as_object_mut().unwrap().remove("marginals");
+    stored.as_object_mut().unwrap().remove("shape_maps");
     let read: BiomarkerCalibration = serde_json::from_value(stored).unwrap();
-    assert_eq!(read.marginals, None);
+    assert_eq!((&read.marginals, &read.shape_maps), (&None, &None));
+    let b = [1.1 * c.drawn_mean[0], 1.05 * c.drawn_mean[1]];
+    assert_eq!(read.target(&b), affine_target(&c, b));
+    assert_ne!(c.target(&b), affine_target(&c, b));
+}
+
+#[test]
+fn a_calibration_stored_with_separate_maps_keeps_them() {
+    let faces = box_faces();
+    let fitted = BiomarkerCalibration::fit(
+        &skewed_boxes(100, 17),
+        None,
+        &[],
+        &boxes(500, 0.5, 18),
+        &faces,
+    )
+    .unwrap();
+    // A volume map and an area map as models fitted with per-biomarker maps stored them.
+    let maps = vec![
+        MarginalMap::fit(&[1.0, 2.0, 3.0, 4.0], &[2.0, 4.0, 6.0, 9.0], &[1.0; 4]).unwrap(),
+        MarginalMap::fit(&[5.0, 6.0, 7.0, 8.0], &[5.0, 5.5, 6.0, 6.5], &[1.0; 4]).unwrap(),
+    ];
+    let mut stored = serde_json::to_value(BiomarkerCalibration {
+        marginals: Some(maps.clone()),
+        ..fitted.clone()
+    })
+    .unwrap();
+    stored.as_object_mut().unwrap().remove("shape_maps");
+    let read: BiomarkerCalibration = serde_json::from_value(stored).unwrap();
     let b = [1.2, 6.1];
-    let d = [b[0] - c.drawn_mean[0], b[1] - c.drawn_mean[1]];
-    for k in 0..2 {
-        let affine = c.target_mean[k] + c.map[k][0] * d[0] + c.map[k][1] * d[1];
-        assert_eq!(read.target(&b)[k], affine);
-        assert_ne!(c.target(&b)[k], affine);
-    }
+    let affine = affine_target(&fitted, b);
+    assert_eq!(
+        read.target(&b),
+        [maps[0].apply(affine[0]), maps[1].apply(affine[1])]
+    );
+}
+
+/// Area over volume^(2/3) of each shape.
+fn shape_indices(shapes: &[Vec<f32>], faces: &[[u32; 3]]) -> Vec<f64> {
+    let volumes = column(shapes, faces, 0);
+    let areas = column(shapes, faces, 1);
+    volumes
+        .iter()
+        .zip(&areas)
+        .map(|(v, a)| a / v.powf(2.0 / 3.0))
+        .collect()
+}
+
+#[test]
+fn draws_keep_the_training_shapes_roundness() {
+    // Skewed training boxes whose volumes and areas are mapped each on its own would take
+    // shape indices no training box has; mapping the volume and the shape index keeps them.
+    let faces = box_faces();
+    let training = skewed_boxes(300, 19);
+    let drawn = boxes(3000, 0.5, 20);
+    let c = BiomarkerCalibration::fit(&training, None, &[], &drawn, &faces).unwrap();
+    let affine: Vec<[f64; 2]> = targets(
+        &BiomarkerCalibration {
+            shape_maps: None,
+            ..c.clone()
+        },
+        &drawn,
+        &faces,
+    );
+    let separate = BiomarkerCalibration {
+        shape_maps: None,
+        marginals: (0..2)
+            .map(|k| {
+                let from: Vec<f64> = affine.iter().map(|t| t[k]).collect();
+                MarginalMap::fit(&from, &column(&training, &faces, k), &[1.0; 300])
+            })
+            .collect(),
+        ..c.clone()
+    };
+    let index_sd = |targets: Vec<[f64; 2]>| {
+        let indices: Vec<f64> = targets
+            .iter()
+            .map(|t| t[1] / t[0].powf(2.0 / 3.0))
+            .collect();
+        mean_sd(&indices).1
+    };
+    let trained = mean_sd(&shape_indices(&training, &faces)).1;
+    let joint = index_sd(targets(&c, &drawn, &faces));
+    let apart = index_sd(targets(&separate, &drawn, &faces));
+    assert!(
+        (joint / trained - 1.0).abs() < 0.1 && (joint - trained).abs() < (apart - trained).abs(),
+        "shape index sd: training {trained}, volume and index mapped {joint}, volume and area \
+         mapped {apart}"
+    );
 }

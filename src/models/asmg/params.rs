@@ -104,9 +104,9 @@ impl SmoothingTarget {
 #[serde(rename_all = "lowercase")]
 pub enum CalibrationKind {
     /// Each draw moved along the training shapes' regression on volume and area until the
-    /// draws' volume and area have the training meshes' mean and covariance and each its
-    /// smoothed distribution (see [`super::biomarker_calibration`]); what else the draws do
-    /// stays as decoded.
+    /// draws' volume and area have the training meshes' mean and covariance, and volume and
+    /// shape index (area / volume^(2/3)) each its smoothed distribution (see
+    /// [`super::biomarker_calibration`]); what else the draws do stays as decoded.
     #[default]
     Biomarkers,
     /// One linear map of the draws' coordinates on the training shapes' principal modes
