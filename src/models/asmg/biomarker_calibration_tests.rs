@@ -292,17 +292,15 @@ fn affine_target(c: &BiomarkerCalibration, b: [f64; 2]) -> [f64; 2] {
     [0, 1].map(|k| c.target_mean[k] + c.map[k][0] * d[0] + c.map[k][1] * d[1])
 }
 
+/// A calibration of 500 boxes to 100 skew-volumed ones (seeds `seed` and `seed + 1`).
+fn skewed_calibration(seed: u64) -> BiomarkerCalibration {
+    let (training, drawn) = (skewed_boxes(100, seed), boxes(500, 0.5, seed + 1));
+    BiomarkerCalibration::fit(&training, None, &[], &drawn, &box_faces()).unwrap()
+}
+
 #[test]
 fn a_calibration_stored_without_maps_keeps_affine_targets() {
-    let faces = box_faces();
-    let c = BiomarkerCalibration::fit(
-        &skewed_boxes(100, 15),
-        None,
-        &[],
-        &boxes(500, 0.5, 16),
-        &faces,
-    )
-    .unwrap();
+    let c = skewed_calibration(15);
     let mut stored = serde_json::to_value(&c).unwrap();
     stored.as_object_mut().unwrap().remove("marginals");
     stored.as_object_mut().unwrap().remove("shape_maps");
@@ -315,15 +313,7 @@ fn a_calibration_stored_without_maps_keeps_affine_targets() {
 
 #[test]
 fn a_calibration_stored_with_separate_maps_keeps_them() {
-    let faces = box_faces();
-    let fitted = BiomarkerCalibration::fit(
-        &skewed_boxes(100, 17),
-        None,
-        &[],
-        &boxes(500, 0.5, 18),
-        &faces,
-    )
-    .unwrap();
+    let fitted = skewed_calibration(17);
     // A volume map and an area map as models fitted with per-biomarker maps stored them.
     let maps = vec![
         MarginalMap::fit(&[1.0, 2.0, 3.0, 4.0], &[2.0, 4.0, 6.0, 9.0], &[1.0; 4]).unwrap(),
