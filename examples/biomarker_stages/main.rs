@@ -197,9 +197,7 @@ fn main() {
 /// model has maps.
 fn affine_draws(asmg: &AsmgModel, draws: usize, seed: u64) -> Option<Vec<Mesh>> {
     let mut affine = asmg.clone();
-    let calibration = affine.biomarker_calibration.as_mut()?;
-    calibration.marginals = None;
-    calibration.shape_maps.take()?;
+    affine.biomarker_calibration.as_mut()?.shape_maps.take()?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     Some(
         (0..draws)

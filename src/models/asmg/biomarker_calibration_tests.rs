@@ -2,6 +2,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
+use super::super::marginal_map::shape_index;
 use super::*;
 
 /// Closed box `[a, b, c]` mm with a corner at `origin`: 8 vertices, 12 outward triangles.
@@ -336,12 +337,12 @@ fn a_calibration_stored_with_separate_maps_keeps_them() {
 
 /// Area over volume^(2/3) of each shape.
 fn shape_indices(shapes: &[Vec<f32>], faces: &[[u32; 3]]) -> Vec<f64> {
-    let volumes = column(shapes, faces, 0);
-    let areas = column(shapes, faces, 1);
-    volumes
+    shapes
         .iter()
-        .zip(&areas)
-        .map(|(v, a)| a / v.powf(2.0 / 3.0))
+        .map(|s| {
+            let [volume, area] = biomarkers(s, faces);
+            shape_index(volume, area)
+        })
         .collect()
 }
 
@@ -372,10 +373,7 @@ fn draws_keep_the_training_shapes_roundness() {
         ..c.clone()
     };
     let index_sd = |targets: Vec<[f64; 2]>| {
-        let indices: Vec<f64> = targets
-            .iter()
-            .map(|t| t[1] / t[0].powf(2.0 / 3.0))
-            .collect();
+        let indices: Vec<f64> = targets.iter().map(|t| shape_index(t[0], t[1])).collect();
         mean_sd(&indices).1
     };
     let trained = mean_sd(&shape_indices(&training, &faces)).1;

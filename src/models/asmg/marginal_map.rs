@@ -64,28 +64,21 @@ impl MarginalMap {
     /// The mapped value of `x`: linear between the knots, and beyond the outermost ones
     /// along the line through them and the 1st (99th) percentile knots.
     pub fn apply(&self, x: f64) -> f64 {
-        interpolate(&self.from, &self.to, x)
+        let n = self.from.len();
+        if n < 2 || self.to.len() != n {
+            return x;
+        }
+        let (lo, hi) = if x <= self.from[0] {
+            (0, TAIL_KNOT.min(n - 1))
+        } else if x >= self.from[n - 1] {
+            (n - 1 - TAIL_KNOT.min(n - 1), n - 1)
+        } else {
+            let hi = self.from.partition_point(|&f| f <= x).min(n - 1);
+            (hi - 1, hi)
+        };
+        let t = (x - self.from[lo]) / (self.from[hi] - self.from[lo]);
+        self.to[lo] + t * (self.to[hi] - self.to[lo])
     }
-}
-
-/// The piecewise-linear function through the knots `(xs, ys)` (`xs` strictly increasing) at
-/// `x`; beyond the outermost knots along the line through them and the `TAIL_KNOT`-th. `x`
-/// itself when the knots do not pair up.
-fn interpolate(xs: &[f64], ys: &[f64], x: f64) -> f64 {
-    let n = xs.len();
-    if n < 2 || ys.len() != n {
-        return x;
-    }
-    let (lo, hi) = if x <= xs[0] {
-        (0, TAIL_KNOT.min(n - 1))
-    } else if x >= xs[n - 1] {
-        (n - 1 - TAIL_KNOT.min(n - 1), n - 1)
-    } else {
-        let hi = xs.partition_point(|&f| f <= x).min(n - 1);
-        (hi - 1, hi)
-    };
-    let t = (x - xs[lo]) / (xs[hi] - xs[lo]);
-    ys[lo] + t * (ys[hi] - ys[lo])
 }
 
 /// The quantile maps of a draw's (volume ml, area cm²) targets: the volume's, and that of
