@@ -13,7 +13,12 @@
 //! and `VOLUME_STRETCH=0.95` those draws moved along the training shapes' regression on
 //! volume (and on volume and area, and on all six) until their volume sd (and the covariance
 //! of those biomarkers) is that share of the training meshes', and the volume-and-area ones
-//! then matched rank for rank to a smoothed density of the training meshes' volume and area.
+//! then matched rank for rank to a smoothed density of the training meshes' volume and area,
+//! and the tempered draws matched rank for rank on volume, area and the extents (with and
+//! without sphericity). For `rsmp`, `BANDWIDTHS=0,0.3,0.5` adds draws from a smoothed
+//! bootstrap of the training shapes' coefficients and draws whose every mode takes a random
+//! training shape's coefficient, each with that kernel width, and every rsmp stage prints its
+//! share of near copies.
 
 use cohortforge::cli::mesh_dir::read_mesh_dir;
 use cohortforge::eval::biomarkers::{Biomarkers, ExtentAxes};
@@ -23,6 +28,7 @@ use cohortforge::mesh::phantom::{self, Family};
 use cohortforge::models::asmg::calibration::MAX_GAIN;
 use cohortforge::models::asmg::model::AsmgModel;
 use cohortforge::models::progress::Silent;
+use cohortforge::models::rsmp::RsmpModel;
 use cohortforge::models::{FitInput, ModelType, ShapeModel};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use rand::{Rng, SeedableRng};
@@ -30,6 +36,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
 mod bias;
+mod bootstrap;
 mod stretch;
 use stretch::{biomarker_stretched, quantile_matched};
 
@@ -134,12 +141,30 @@ fn main() {
         .cloned()
         .collect();
     reference.print("  within", &within, Some(&mean_axis));
+    if let Some(rsmp) = stored.model.as_any().downcast_ref::<RsmpModel>() {
+        let normalised = &stored.training.normalised_f64()[0];
+        println!(
+            "draws near copies {:.1}%",
+            bootstrap::near_copy_percent(rsmp, normalised, &drawn)
+        );
+        let coefficients = bootstrap::standard_coefficients(rsmp, normalised);
+        for h in env_list::<f64>("BANDWIDTHS") {
+            for (label, modewise) in [("bootstrap", false), ("modewise", true)] {
+                let d = bootstrap::bootstrap_draws(rsmp, &coefficients, (h, modewise), draws, seed);
+                reference.print(&format!("{label} h {h}"), &d, Some(&mean_axis));
+                println!(
+                    "  near copies {:.1}%",
+                    bootstrap::near_copy_percent(rsmp, normalised, &d)
+                );
+            }
+        }
+    }
     if let Some(asmg) = stored.model.as_any().downcast_ref::<AsmgModel>() {
         if let Some(d) = affine_draws(asmg, draws, seed) {
             reference.print("draws, affine targets", &d, Some(&mean_axis));
         }
         bias::print_bias(asmg, &meshes, draws, seed);
-        for t in temperatures() {
+        for t in env_list::<f32>("TEMPERATURES") {
             let tempered = tempered_draws(asmg, t, draws, seed);
             reference.print(&format!("draws, latent x{t}"), &tempered, Some(&mean_axis));
             if let Some(share) = std::env::var("VOLUME_STRETCH")
@@ -160,6 +185,14 @@ fn main() {
                 reference.print("  all-six-stretched", &all, Some(&mean_axis));
                 let matched = quantile_matched(&reproduced, &both, &meshes, &[0, 1]);
                 reference.print("  +quantile-matched", &matched, Some(&mean_axis));
+                for columns in [&[0, 1, 3, 4, 5][..], &[0, 1, 2, 3, 4, 5]] {
+                    let matched = quantile_matched(&reproduced, &tempered, &meshes, columns);
+                    reference.print(
+                        &format!("  matched {columns:?}"),
+                        &matched,
+                        Some(&mean_axis),
+                    );
+                }
             }
         }
     }
@@ -206,9 +239,9 @@ fn affine_draws(asmg: &AsmgModel, draws: usize, seed: u64) -> Option<Vec<Mesh>> 
     )
 }
 
-/// Latent temperatures from `TEMPERATURES` (comma-separated; none by default).
-fn temperatures() -> Vec<f32> {
-    std::env::var("TEMPERATURES").map_or_else(
+/// The comma-separated values of the environment variable `name` (none when unset).
+fn env_list<T: std::str::FromStr>(name: &str) -> Vec<T> {
+    std::env::var(name).map_or_else(
         |_| Vec::new(),
         |text| {
             text.split(',')

@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 use super::alignment::{self, AlignmentParams, Normalisation, simplified};
 use super::check_cluster;
 use super::progress::{Progress, Stages};
+use super::reference::SMALL_POPULATION;
 use super::stored::{FittedModel, encode_named};
 use super::workers::map_items;
 use super::{
@@ -25,7 +26,10 @@ use crate::mesh::Mesh;
 use crate::mesh::adjacency::Adjacency;
 use crate::mesh::smooth::taubin;
 
+mod coefficients;
 mod params;
+
+pub use coefficients::ModeCoefficients;
 
 pub use params::{CheckedRsmpParams, DEFAULT_VARIANCE_TARGET, RsmpParams};
 
@@ -64,6 +68,11 @@ pub struct RsmpModel {
     /// the budget existed registered every vertex, and still do).
     #[serde(default = "every_vertex")]
     pub max_vertices: usize,
+    /// The training shapes' coefficients, from which Gaussian-sampling draws take each mode's
+    /// (absent: `N(0, λᵢ)`, as in models stored before they existed, fits with
+    /// `empirical_coefficients` off and fits of fewer than 20 meshes).
+    #[serde(default)]
+    pub mode_coefficients: Option<ModeCoefficients>,
     /// The template's adjacency, built on the first smoothed draw.
     #[serde(skip)]
     template_adjacency: std::sync::OnceLock<Adjacency>,
@@ -163,8 +172,12 @@ impl ShapeModel for RsmpModel {
     }
 
     fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Draw, ModelError> {
+        let x = match (&self.mode_coefficients, sampling) {
+            (Some(c), Sampling::Gaussian) => self.pca.reconstruct(&c.draw(rng))?,
+            _ => self.pca.sample(rng, sampling),
+        };
         Ok(Draw {
-            mesh: self.drawn_mesh(&self.pca.sample(rng, sampling)),
+            mesh: self.drawn_mesh(&x),
             cluster: 0,
         })
     }
@@ -196,7 +209,7 @@ impl ShapeModel for RsmpModel {
         let shapes = normalised.first().map(Vec::as_slice).unwrap_or_default();
         // Below this the leave-one-out threshold already compares like with like (the
         // quickstart's 8 meshes: 0 of 100 members flagged with it, 26 with projected shapes).
-        if shapes.len() < crate::models::reference::SMALL_POPULATION {
+        if shapes.len() < SMALL_POPULATION {
             return Ok(None);
         }
         let regenerated = shapes
@@ -322,6 +335,7 @@ fn fit(
         draw_smoothing_steps: params.draw_smoothing_steps,
         procrustes: false,
         max_vertices: params.max_vertices,
+        mode_coefficients: None,
         template_adjacency: std::sync::OnceLock::new(),
     };
     let total = training.len() as u64;
@@ -346,6 +360,9 @@ fn fit(
         variance_target: params.variance_target,
     };
     model.pca = PcaModel::fit_with(&flattened, &pca_params)?;
+    if params.empirical_coefficients && training.len() >= SMALL_POPULATION {
+        model.mode_coefficients = Some(ModeCoefficients::of_shapes(&model.pca, &flattened)?);
+    }
     stages.report(
         progress,
         1,

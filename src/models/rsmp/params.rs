@@ -58,6 +58,13 @@ pub struct RsmpParams {
     /// and of a mesh with more, every k-th vertex is registered so that about this many
     /// remain. CPD's cost grows with the product of the two vertex counts.
     pub max_vertices: usize,
+    /// Draw each mode's coefficient from the training shapes' own coefficients of that mode
+    /// (one training shape chosen at random per mode) instead of from a Gaussian, from
+    /// [`SMALL_POPULATION`] training meshes on (fewer draw Gaussian coefficients). A
+    /// request's `sampling: "uniform"` still draws uniform coefficients.
+    ///
+    /// [`SMALL_POPULATION`]: crate::models::reference::SMALL_POPULATION
+    pub empirical_coefficients: bool,
 }
 
 impl Default for RsmpParams {
@@ -78,6 +85,7 @@ impl Default for RsmpParams {
             draw_smoothing_steps: DEFAULT_DRAW_SMOOTHING_STEPS,
             procrustes: true,
             max_vertices: DEFAULT_MAX_VERTICES,
+            empirical_coefficients: true,
         }
     }
 }

@@ -99,6 +99,8 @@ fn fit_samples_and_reconstructs_phantoms() {
     assert!(back.training.privacy[0].threshold_mm > 0.0);
     assert_eq!(back_model.draw_smoothing_steps, 2);
     assert!(back_model.procrustes);
+    // Six meshes are too few for their own coefficients to be the draws' distribution.
+    assert!(back_model.mode_coefficients.is_none());
 
     // Drawn shapes are smoothed by the model's Taubin steps; without them the same draw
     // is the plain PCA shape, with more surface (folds).
@@ -128,6 +130,7 @@ fn fit_samples_and_reconstructs_phantoms() {
         .remove("draw_smoothing_steps");
     stored.as_object_mut().unwrap().remove("procrustes");
     stored.as_object_mut().unwrap().remove("max_vertices");
+    stored.as_object_mut().unwrap().remove("mode_coefficients");
     let old: RsmpModel = serde_json::from_value(stored).unwrap();
     assert_eq!(old.draw_smoothing_steps, 0);
     assert!(!old.procrustes);
@@ -171,4 +174,58 @@ fn meshes_above_the_vertex_budget_are_registered_simplified() {
         .unwrap()
         .parse_params(&serde_json::json!({ "max_vertices": 3 }));
     assert!(refused.unwrap_err().to_string().contains("max_vertices"));
+}
+
+#[test]
+fn draws_take_each_mode_from_the_training_shapes_from_twenty_meshes_on() {
+    let training: Vec<Mesh> = phantom::meshes(Family::Lv, 20, 5);
+    let budget = serde_json::json!({ "max_vertices": 300 });
+    let outcome = fitted("rsmp", &training, budget.clone());
+    let model: &RsmpModel = outcome.model.downcast().expect("an rsmp model");
+    let coefficients = model
+        .mode_coefficients
+        .as_ref()
+        .expect("empirical coefficients");
+    assert_eq!(coefficients.by_mode.len(), model.pca.n_modes());
+    assert!(coefficients.by_mode.iter().all(|values| values.len() == 20));
+    // The coefficients are the training shapes' projections: the first mode's spread among
+    // them is its PCA variance (n − 1 in both).
+    let first = &coefficients.by_mode[0];
+    let variance = first.iter().map(|b| b * b).sum::<f64>() / 19.0;
+    assert!((variance / model.pca.variances[0] - 1.0).abs() < 1e-6);
+    // A Gaussian-sampling draw is the shape of coefficients drawn from them, seeded.
+    let rng = || crate::models::cohort::draw_rng(3, 0);
+    let drawn = model.sample(&mut rng(), Sampling::Gaussian).unwrap().mesh;
+    let expected = model.drawn_mesh(
+        &model
+            .pca
+            .reconstruct(&coefficients.draw(&mut rng()))
+            .unwrap(),
+    );
+    assert_eq!(drawn, expected);
+    assert_eq!(
+        drawn,
+        model.sample(&mut rng(), Sampling::Gaussian).unwrap().mesh
+    );
+    // Uniform sampling stays uniform, and the model stored without them draws Gaussians.
+    let uniform = model.sample(&mut rng(), Sampling::Uniform).unwrap().mesh;
+    assert_eq!(
+        uniform,
+        model.drawn_mesh(&model.pca.sample(&mut rng(), Sampling::Uniform))
+    );
+    let mut old = serde_json::to_value(model).unwrap();
+    old.as_object_mut().unwrap().remove("mode_coefficients");
+    let old: RsmpModel = serde_json::from_value(old).unwrap();
+    let gaussian = old.sample(&mut rng(), Sampling::Gaussian).unwrap().mesh;
+    assert_eq!(
+        gaussian,
+        model.drawn_mesh(&model.pca.sample(&mut rng(), Sampling::Gaussian))
+    );
+    assert_ne!(gaussian, drawn);
+    // Off by request: Gaussian coefficients.
+    let mut params = budget;
+    params["empirical_coefficients"] = false.into();
+    let gaussian_fit = fitted("rsmp", &training, params);
+    let gaussian_model: &RsmpModel = gaussian_fit.model.downcast().unwrap();
+    assert!(gaussian_model.mode_coefficients.is_none());
 }
