@@ -18,7 +18,8 @@
 //! without sphericity). For `rsmp`, `BANDWIDTHS=0,0.3,0.5` adds draws from a smoothed
 //! bootstrap of the training shapes' coefficients and draws whose every mode takes a random
 //! training shape's coefficient, each with that kernel width, and every rsmp stage prints its
-//! share of near copies.
+//! share of near copies. Last, for each stage, how far the two ends of the long axis lie
+//! from the centroid and how far each end's farthest vertex stands out of the next 20.
 
 use cohortforge::cli::mesh_dir::read_mesh_dir;
 use cohortforge::eval::biomarkers::{Biomarkers, ExtentAxes};
@@ -37,6 +38,7 @@ use rand_distr::StandardNormal;
 
 mod bias;
 mod bootstrap;
+mod ends;
 mod stretch;
 use stretch::{biomarker_stretched, quantile_matched};
 
@@ -141,6 +143,10 @@ fn main() {
         .cloned()
         .collect();
     reference.print("  within", &within, Some(&mean_axis));
+    // The training meshes keep their own poses: either end is "top".
+    ends::print_ends("training meshes", &meshes, None);
+    ends::print_ends("reproduced", &reproduced, Some(&mean_axis));
+    ends::print_ends("draws", &drawn, Some(&mean_axis));
     if let Some(rsmp) = stored.model.as_any().downcast_ref::<RsmpModel>() {
         let normalised = &stored.training.normalised_f64()[0];
         println!(
