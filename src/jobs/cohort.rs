@@ -47,7 +47,9 @@ pub struct CohortRequest {
     #[serde(default)]
     #[schema(minimum = 0)]
     pub seed: u64,
-    /// `gaussian` (default; coefficients clipped at 3 sd) or `uniform`.
+    /// `gaussian` (default: the model's own distribution, Gaussian coefficients clipped at
+    /// 3 sd; an `rsmp` model fitted on 20 meshes or more takes each mode's coefficient from a
+    /// training shape's) or `uniform` (coefficients uniform within ±3 sd).
     #[serde(default)]
     pub sampling: Sampling,
     /// Acceptance criterion.
