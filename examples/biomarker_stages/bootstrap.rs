@@ -3,7 +3,6 @@
 //! normal vector, so that the draws keep the coefficients' variance and their joint shape.
 
 use cohortforge::eval::privacy::CorrespondedShapes;
-use cohortforge::geometry::correspondence::flatten;
 use cohortforge::mesh::Mesh;
 use cohortforge::models::ShapeModel;
 use cohortforge::models::rsmp::RsmpModel;
@@ -11,24 +10,22 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
-/// Each normalised training shape's standard coefficients `b / √λ`.
-pub fn standard_coefficients(rsmp: &RsmpModel, normalised: &[Vec<[f64; 3]>]) -> Vec<Vec<f64>> {
-    normalised
-        .iter()
-        .map(|shape| {
-            let x = flatten(
-                &shape
+/// Each training shape's standard coefficients `b / √λ`, from those the model stores (fits
+/// of 20 meshes or more with `empirical_coefficients`).
+pub fn standard_coefficients(rsmp: &RsmpModel) -> Option<Vec<Vec<f64>>> {
+    let by_mode = &rsmp.mode_coefficients.as_ref()?.by_mode;
+    let shapes = by_mode.first().map_or(0, Vec::len);
+    Some(
+        (0..shapes)
+            .map(|i| {
+                by_mode
                     .iter()
-                    .map(|p| rsmp.normalisation.apply(*p))
-                    .collect::<Vec<_>>(),
-            );
-            let b = rsmp.pca.project(&x).unwrap();
-            b.iter()
-                .zip(&rsmp.pca.variances)
-                .map(|(b, l)| b / l.sqrt())
-                .collect()
-        })
-        .collect()
+                    .zip(&rsmp.pca.variances)
+                    .map(|(values, l)| values[i] / l.sqrt())
+                    .collect()
+            })
+            .collect(),
+    )
 }
 
 /// `draws` draws with kernel width `h` (share of each mode's sd): a random training shape's
@@ -60,19 +57,34 @@ pub fn bootstrap_draws(
     rsmp.decode_standard(0, &standard).unwrap()
 }
 
-/// Share (%) of `drawn` nearer a regenerated training shape than the 5th percentile of the
-/// regenerated shapes' own nearest-neighbour distances.
-pub fn near_copy_percent(rsmp: &RsmpModel, normalised: &[Vec<[f64; 3]>], drawn: &[Mesh]) -> f64 {
-    let regenerated = rsmp
-        .regenerated_training(&[normalised.to_vec()])
-        .unwrap()
-        .unwrap()
-        .remove(0);
-    let shapes = CorrespondedShapes::new(&regenerated).unwrap();
-    let threshold = shapes.privacy_threshold(0.05).unwrap().threshold_mm;
-    let near = drawn
-        .iter()
-        .filter(|m| shapes.nearest(&m.vertices).unwrap().distance_mm < threshold)
-        .count();
-    100.0 * near as f64 / drawn.len() as f64
+/// The regenerated training shapes and the 5th percentile of their own nearest-neighbour
+/// distances (mm), against which draws are near copies.
+pub struct NearCopies {
+    shapes: CorrespondedShapes,
+    threshold_mm: f64,
+}
+
+impl NearCopies {
+    pub fn new(rsmp: &RsmpModel, normalised: &[Vec<[f64; 3]>]) -> Self {
+        let regenerated = rsmp
+            .regenerated_training(&[normalised.to_vec()])
+            .unwrap()
+            .unwrap()
+            .remove(0);
+        let shapes = CorrespondedShapes::new(&regenerated).unwrap();
+        let threshold_mm = shapes.privacy_threshold(0.05).unwrap().threshold_mm;
+        Self {
+            shapes,
+            threshold_mm,
+        }
+    }
+
+    /// Share (%) of `drawn` nearer a regenerated training shape than the threshold.
+    pub fn percent(&self, drawn: &[Mesh]) -> f64 {
+        let near = drawn
+            .iter()
+            .filter(|m| self.shapes.nearest(&m.vertices).unwrap().distance_mm < self.threshold_mm)
+            .count();
+        100.0 * near as f64 / drawn.len() as f64
+    }
 }

@@ -148,21 +148,29 @@ fn main() {
     ends::print_ends("reproduced", &reproduced, Some(&mean_axis));
     ends::print_ends("draws", &drawn, Some(&mean_axis));
     if let Some(rsmp) = stored.model.as_any().downcast_ref::<RsmpModel>() {
-        let normalised = &stored.training.normalised_f64()[0];
-        println!(
-            "draws near copies {:.1}%",
-            bootstrap::near_copy_percent(rsmp, normalised, &drawn)
-        );
-        let coefficients = bootstrap::standard_coefficients(rsmp, normalised);
-        for h in env_list::<f64>("BANDWIDTHS") {
-            for (label, modewise) in [("bootstrap", false), ("modewise", true)] {
-                let d = bootstrap::bootstrap_draws(rsmp, &coefficients, (h, modewise), draws, seed);
-                reference.print(&format!("{label} h {h}"), &d, Some(&mean_axis));
-                println!(
-                    "  near copies {:.1}%",
-                    bootstrap::near_copy_percent(rsmp, normalised, &d)
-                );
+        let near_copies = bootstrap::NearCopies::new(rsmp, &stored.training.normalised_f64()[0]);
+        println!("draws near copies {:.1}%", near_copies.percent(&drawn));
+        let bandwidths = env_list::<f64>("BANDWIDTHS");
+        match bootstrap::standard_coefficients(rsmp) {
+            Some(coefficients) => {
+                for h in bandwidths {
+                    for (label, modewise) in [("bootstrap", false), ("modewise", true)] {
+                        let d = bootstrap::bootstrap_draws(
+                            rsmp,
+                            &coefficients,
+                            (h, modewise),
+                            draws,
+                            seed,
+                        );
+                        reference.print(&format!("{label} h {h}"), &d, Some(&mean_axis));
+                        println!("  near copies {:.1}%", near_copies.percent(&d));
+                    }
+                }
             }
+            None if !bandwidths.is_empty() => {
+                println!("BANDWIDTHS needs a model that stores its training coefficients")
+            }
+            None => {}
         }
     }
     if let Some(asmg) = stored.model.as_any().downcast_ref::<AsmgModel>() {
