@@ -59,7 +59,7 @@ fn aligned_meshes(count: usize, seed: u64, params: &AsmgParams) -> Vec<Mesh> {
     let aligned: Vec<Mesh> = meshes
         .iter()
         .map(|m| {
-            align(&reference, m, &alignment, params.max_vertices, &[])
+            align(&reference, m, None, &alignment, params.max_vertices, &[])
                 .expect("align")
                 .0
         })

@@ -78,6 +78,8 @@ fn main() {
     let input = FitInput {
         training: &meshes,
         holdout: &[],
+        training_laterality: &[],
+        holdout_laterality: &[],
         template_indices: &[],
         seed,
     };

@@ -129,7 +129,7 @@ async fn check_dataset(
 ) -> Result<(), ApiError> {
     let meshes = state
         .store
-        .dataset_mesh_hashes(&body.dataset_id)
+        .dataset_mesh_keys(&body.dataset_id)
         .await
         .map_err(|e| match e {
             crate::store::StoreError::NotFound { .. } => ApiError::invalid_field(
@@ -141,7 +141,7 @@ async fn check_dataset(
             ),
             other => other.into(),
         })?;
-    let ids: Vec<String> = meshes.into_iter().map(|(id, _)| id).collect();
+    let ids: Vec<String> = meshes.into_iter().map(|m| m.id).collect();
     let templates = params.template_mesh_ids();
     if let Some(t) = templates.iter().find(|t| !ids.iter().any(|id| id == *t)) {
         let field = format!("params.{}", params.template_field());

@@ -16,7 +16,7 @@ use super::upload::{
     Conversion, InputKind, UploadedFile, convert_all, parse_input_kind, read_multipart,
     unsupported_content_type,
 };
-use crate::mesh::{self, Format};
+use crate::mesh::{self, Format, Laterality};
 use crate::segmentation;
 use crate::store::meshes::MeshRecord;
 
@@ -26,7 +26,7 @@ const MAX_NAME_CHARS: usize = 200;
 pub(super) fn router() -> OpenApiRouter<AppState> {
     OpenApiRouter::new()
         .routes(routes!(upload_meshes, list_meshes))
-        .routes(routes!(get_mesh, delete_mesh))
+        .routes(routes!(get_mesh, update_mesh, delete_mesh))
         .routes(routes!(download_mesh))
 }
 
@@ -65,6 +65,12 @@ pub struct UploadQuery {
     /// closed (default: the dataset's `target_vertices`, else no simplification).
     #[param(minimum = 8, maximum = 1_000_000)]
     pub target_vertices: Option<i64>,
+    /// The side of a paired organ every mesh of the upload is (`left` or `right` kidney,
+    /// lung, ...); set or change it per mesh later with `PATCH /v1/meshes/{id}`. Models that
+    /// learn both sides on one (`mirror`) take it as given instead of reading it from the
+    /// shape.
+    #[param(value_type = Option<crate::mesh::Laterality>, inline)]
+    pub laterality: Option<String>,
 }
 
 impl UploadQuery {
@@ -239,7 +245,18 @@ fn conversion(
         segmentation: query.segmentation()?,
         limits: segmentation::Limits::default(),
         target_vertices: target.map(|t| t as usize),
+        laterality: query
+            .laterality
+            .as_deref()
+            .map(parse_laterality)
+            .transpose()?,
     })
+}
+
+/// A side named in a request.
+fn parse_laterality(name: &str) -> Result<Laterality, ApiError> {
+    name.parse()
+        .map_err(|e| ApiError::invalid_field("laterality", format!("laterality: {e}")))
 }
 
 /// Converts every file off the async runtime, then stores them in one transaction.
@@ -286,6 +303,47 @@ async fn get_mesh(
     Path(id): Path<String>,
 ) -> Result<Json<MeshRecord>, ApiError> {
     Ok(Json(state.store.mesh(&id).await?))
+}
+
+/// Changes to a mesh's metadata (the geometry never changes).
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MeshUpdate {
+    /// The side of a paired organ, `left` or `right`; `null` clears it. Models fitted
+    /// before keep the sides they were fitted with.
+    #[serde(default, deserialize_with = "present")]
+    #[schema(value_type = Option<crate::mesh::Laterality>, nullable)]
+    pub laterality: Option<Option<String>>,
+}
+
+/// Some(value) for a field present in the body, even when it is `null`.
+fn present<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Option<String>>, D::Error> {
+    Option::<String>::deserialize(d).map(Some)
+}
+
+/// Set or clear a mesh's side.
+#[utoipa::path(
+    patch, path = "/v1/meshes/{id}", tag = "meshes",
+    params(("id" = String, Path, description = "Mesh id")),
+    request_body = MeshUpdate,
+    responses(
+        (status = 200, description = "The updated mesh record", body = MeshRecord),
+        (status = 404, description = "No such mesh", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Not a side (`request.invalid_field`) or an unknown field", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+async fn update_mesh(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+    Json(update): Json<MeshUpdate>,
+) -> Result<Json<MeshRecord>, ApiError> {
+    let Some(laterality) = update.laterality else {
+        return Ok(Json(state.store.mesh(&id).await?));
+    };
+    let laterality = laterality.as_deref().map(parse_laterality).transpose()?;
+    Ok(Json(
+        state.store.set_mesh_laterality(&id, laterality).await?,
+    ))
 }
 
 /// Delete a mesh.

@@ -92,6 +92,12 @@ pub struct ModelView {
     /// absent when none was.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub mirrored_mesh_ids: Vec<String>,
+    /// With `mirror`, the side every shape of the model and every cohort member has (the
+    /// alignment reference's), when the training meshes' sides were given (`laterality` of a
+    /// mesh); absent otherwise.
+    #[schema(value_type = Option<crate::mesh::Laterality>)]
+    #[serde(skip_serializing_if = "serde_json::Value::is_null")]
+    pub laterality: serde_json::Value,
     /// Creation time (RFC 3339, UTC).
     pub created_at: String,
 }
@@ -267,6 +273,7 @@ impl From<ModelRecord> for ModelView {
             fidelity: field("fidelity"),
             beta_choices: field("beta_choices"),
             mirrored_mesh_ids: mirrored_of(&r.summary, &r.provenance),
+            laterality: field("laterality"),
             id: r.id,
             model_type: r.model_type,
             params: r.params,

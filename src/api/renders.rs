@@ -16,7 +16,7 @@ use super::meshes::file_response;
 use super::models::load_model;
 use super::plots::PlotImage;
 use crate::geometry::bvh::TriangleBvh;
-use crate::mesh::Mesh;
+use crate::mesh::{Laterality, Mesh};
 use crate::models::StoredModel;
 use crate::models::shape_modes::shape_modes;
 use crate::report::render::pictures::{self, DEFAULT_PANEL_PX};
@@ -162,10 +162,11 @@ pub(super) async fn model_picture(
     if let Some(k) = name.strip_prefix("reconstruction_") {
         let k: usize = k.parse().map_err(|_| ApiError::internal("render name"))?;
         let mesh = state.store.mesh_geometry(&holdout_ids[k]).await?;
+        let laterality = state.store.mesh(&holdout_ids[k]).await?.laterality;
         let mesh_id = holdout_ids[k].clone();
         return off_runtime(move || {
             let title = format!("held-out mesh {mesh_id} and its reconstruction");
-            reconstruction_picture(&stored, &mesh, &title, view, size)
+            reconstruction_picture(&stored, &mesh, laterality, &title, view, size)
         })
         .await;
     }
@@ -189,11 +190,13 @@ pub(super) async fn model_picture(
     .await
 }
 
-/// The held-out `mesh` in the model frame beside its reconstruction coloured by the
-/// distance of each reconstruction vertex to the held-out surface.
+/// The held-out `mesh` (of the side the user gave, if any) in the model frame beside its
+/// reconstruction coloured by the distance of each reconstruction vertex to the held-out
+/// surface.
 fn reconstruction_picture(
     stored: &StoredModel,
     mesh: &Mesh,
+    laterality: Option<Laterality>,
     title: &str,
     view: Option<View>,
     size: u32,
@@ -201,7 +204,10 @@ fn reconstruction_picture(
     let unreadable = |e: crate::models::ModelError| {
         ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e.code(), e.to_string())
     };
-    let r = stored.model.reconstruct(mesh).map_err(unreadable)?;
+    let r = stored
+        .model
+        .reconstruct(mesh, laterality)
+        .map_err(unreadable)?;
     let held_out = Mesh::new(r.aligned_input, mesh.faces.clone());
     let surface = TriangleBvh::new(&held_out.vertices, &held_out.faces)
         .map_err(|e| ApiError::internal(e.to_string()))?;

@@ -11,7 +11,7 @@ use super::error::ApiError;
 use super::meshes::UploadQuery;
 use crate::mesh::simplify::simplify;
 use crate::mesh::validate::{IngestOptions, Ingested, validate};
-use crate::mesh::{self, Format};
+use crate::mesh::{self, Format, Laterality};
 use crate::segmentation::{self, NiftiError, Options};
 use crate::store::meshes::{NewMesh, format_name};
 
@@ -78,6 +78,8 @@ pub struct Conversion {
     pub limits: segmentation::Limits,
     /// Simplify every mesh to about this many vertices.
     pub target_vertices: Option<usize>,
+    /// The side of every mesh of the upload, when the user gave it.
+    pub laterality: Option<Laterality>,
 }
 
 impl From<NiftiError> for ApiError {
@@ -252,6 +254,7 @@ fn convert(conversion: &Conversion, file: UploadedFile) -> Result<NewMesh, ApiEr
         source_format,
         ingested,
         source: (!source.is_empty()).then_some(Value::Object(source)),
+        laterality: conversion.laterality,
     })
 }
 

@@ -29,7 +29,7 @@ use crate::mesh::{Mesh, phantom};
 use crate::models::cohort::{CohortSpec, Criterion, TrainingIndex, sample_cohort};
 use crate::models::evaluation::evaluate;
 use crate::models::progress::Stages;
-use crate::models::{ModelError, ShapeModel};
+use crate::models::{FitInput, ModelError, ShapeModel};
 
 /// Added to the bench seed for the fresh phantoms of the fidelity check, so that they are
 /// not the training or test subjects.
@@ -226,14 +226,8 @@ fn bench_model(
     let mut progress = StderrProgress::new(name);
     let started = Instant::now();
     let (outcome, fit_memory) = memory::measure(|| {
-        fit_model(
-            params,
-            &data.training,
-            &data.test,
-            &[],
-            args.seed,
-            &mut progress,
-        )
+        let input = FitInput::new(&data.training, &data.test, args.seed);
+        fit_model(params, &input, &mut progress)
     });
     let outcome = outcome.map_err(|e| e.to_string())?;
     let fit = FitBench {
@@ -375,6 +369,7 @@ fn time_specificity(
             model,
             aligned,
             faces,
+            &[],
             &[],
             n,
             args.seed,

@@ -50,7 +50,7 @@ pub fn held_out_privacy<M: ShapeModel + Sync + ?Sized>(
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| e.to_string())?;
     let nearest = parallel_map(held_out, |mesh| -> Result<(f64, bool, bool), String> {
-        let reconstruction = model.reconstruct(mesh).map_err(|e| e.to_string())?;
+        let reconstruction = model.reconstruct(mesh, None).map_err(|e| e.to_string())?;
         let m = reconstruction.atlas;
         let (shapes, (threshold, plain)) = index
             .shapes

@@ -8,6 +8,7 @@ mod bench_fidelity;
 pub mod bench_models;
 pub mod bench_privacy;
 pub mod bench_report;
+pub mod laterality_file;
 pub mod memory;
 pub mod mesh_dir;
 pub mod model_file;

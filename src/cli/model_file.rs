@@ -205,6 +205,7 @@ mod tests {
     use crate::jobs::fit::fit_model;
     use crate::mesh::Mesh;
     use crate::mesh::phantom::{self, Family};
+    use crate::models::FitInput;
     use crate::models::progress::Silent;
 
     fn quick_params() -> ModelParams {
@@ -221,7 +222,12 @@ mod tests {
             .map(|p| p.canonical_mesh())
             .collect();
         let params = quick_params();
-        let outcome = fit_model(&params, &meshes[..4], &meshes[4..], &[], 9, &mut Silent).unwrap();
+        let outcome = fit_model(
+            &params,
+            &FitInput::new(&meshes[..4], &meshes[4..], 9),
+            &mut Silent,
+        )
+        .unwrap();
         let names: Vec<String> = (0..5).map(|i| format!("lv_{i:03}.obj")).collect();
         let inputs = FitInputs {
             training_names: &names[..4],

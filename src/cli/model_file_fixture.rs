@@ -9,6 +9,7 @@ use crate::jobs::fit::fit_model;
 use crate::mesh::Mesh;
 use crate::mesh::phantom::{self, Family};
 use crate::mesh::simplify::simplify;
+use crate::models::FitInput;
 use crate::models::cohort::draw_rng;
 use crate::models::progress::Silent;
 
@@ -31,7 +32,12 @@ fn write_fixture() {
         .unwrap()
         .parse_params(&json)
         .unwrap();
-    let outcome = fit_model(&params, &meshes[..4], &meshes[4..], &[], 5, &mut Silent).unwrap();
+    let outcome = fit_model(
+        &params,
+        &FitInput::new(&meshes[..4], &meshes[4..], 5),
+        &mut Silent,
+    )
+    .unwrap();
     let names: Vec<String> = (0..5).map(|i| format!("lv_{i:03}.obj")).collect();
     let inputs = FitInputs {
         training_names: &names[..4],
@@ -65,7 +71,7 @@ fn the_checked_in_model_of_an_earlier_release_loads_samples_and_reconstructs() {
     assert_eq!(draw.mesh.faces, atlases[0].faces);
     assert!(crate::mesh::measures::volume_ml(&draw.mesh) > 1.0);
     let holdout = &small_phantoms()[4];
-    let r = stored.model.reconstruct(holdout).unwrap();
+    let r = stored.model.reconstruct(holdout, None).unwrap();
     assert_eq!(r.mesh.vertex_count(), atlases[0].vertex_count());
     // What it stores today reads back the same way.
     let again = StoredModel::from_bytes(&stored.to_bytes().unwrap()).unwrap();

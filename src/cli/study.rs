@@ -1,11 +1,12 @@
 //! `cohortforge fit` and `cohortforge evaluate`: the fit jobs' code on directories of mesh
 //! files, so that studies can be scripted and compared with other tools.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde::Serialize;
 
+use super::laterality_file::LateralityFile;
 use super::mesh_dir::{NamedMesh, read_mesh_dir};
 use super::model_file::{FitInputs, ModelFile};
 use super::progress::StderrProgress;
@@ -19,7 +20,7 @@ use crate::mesh::Mesh;
 use crate::models::cohort::{CohortReport, CohortSpec, Criterion, TrainingIndex, sample_cohort};
 use crate::models::evaluation::evaluate;
 use crate::models::progress::Stages;
-use crate::models::{Evaluation, ModelParams, ModelType, StageTiming};
+use crate::models::{Evaluation, FitInput, ModelParams, ModelType, StageTiming};
 
 /// Column labels of the two ways distances are measured.
 pub const DISTANCE_KINDS: [&str; 2] = ["vertex-to-vertex", "point-to-surface"];
@@ -43,6 +44,10 @@ pub struct FitArgs {
     /// Random seed; the same seed and meshes give the same model.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Sides of paired-organ meshes: lines `mesh,left` or `mesh,right` (file name with or
+    /// without extension). Models with `mirror` take them as given.
+    #[arg(long)]
+    pub laterality: Option<PathBuf>,
     /// Model file to write.
     #[arg(long)]
     pub out: PathBuf,
@@ -67,6 +72,10 @@ pub struct EvaluateArgs {
     /// JSON file to write the results to.
     #[arg(long)]
     pub json: PathBuf,
+    /// Sides of paired-organ meshes: lines `mesh,left` or `mesh,right` (file name with or
+    /// without extension). Models with `mirror` take them as given.
+    #[arg(long)]
+    pub laterality: Option<PathBuf>,
 }
 
 /// Parses a model type name for clap.
@@ -105,6 +114,11 @@ fn pick(meshes: &[NamedMesh], names: &[String]) -> Vec<Mesh> {
         .collect()
 }
 
+/// The sides a `--laterality` file gives (none without one).
+fn laterality_of(path: Option<&Path>) -> Result<LateralityFile, String> {
+    path.map_or_else(|| Ok(LateralityFile::default()), LateralityFile::read)
+}
+
 /// Runs `cohortforge fit`.
 pub fn fit(args: &FitArgs) -> CliResult {
     let params = parse_params(args.model, args.params.as_deref())?;
@@ -136,15 +150,16 @@ pub fn fit(args: &FitArgs) -> CliResult {
     );
     let started = Instant::now();
     let mut progress = StderrProgress::new(args.model.as_str());
-    let outcome = fit_model(
-        &params,
-        &training,
-        &holdout,
-        &template_indices,
-        args.seed,
-        &mut progress,
-    )
-    .map_err(|e| e.to_string())?;
+    let sides = laterality_of(args.laterality.as_deref())?;
+    let input = FitInput {
+        training: &training,
+        holdout: &holdout,
+        training_laterality: &sides.sides_of(&training_names)?,
+        holdout_laterality: &sides.sides_of(&holdout_names)?,
+        template_indices: &template_indices,
+        seed: args.seed,
+    };
+    let outcome = fit_model(&params, &input, &mut progress).map_err(|e| e.to_string())?;
     let inputs = FitInputs {
         training_names: &training_names,
         holdout_names: &holdout_names,
@@ -168,7 +183,11 @@ pub fn fit(args: &FitArgs) -> CliResult {
     if !outcome.summary.mirrored_training.is_empty() {
         println!(
             "{}\n",
-            mirrored_sentence(&outcome.summary.mirrored_training, &training_names)
+            mirrored_sentence(
+                &outcome.summary.mirrored_training,
+                &training_names,
+                outcome.summary.laterality
+            )
         );
     }
     println!(
@@ -185,14 +204,19 @@ pub fn fit(args: &FitArgs) -> CliResult {
 }
 
 /// Which training meshes were registered as their mirror images.
-fn mirrored_sentence(positions: &[usize], names: &[String]) -> String {
+fn mirrored_sentence(
+    positions: &[usize],
+    names: &[String],
+    laterality: Option<crate::mesh::Laterality>,
+) -> String {
+    let side = laterality.map_or(String::new(), |s| format!(" (the patient's {s}, as given)"));
     let listed: Vec<&str> = positions
         .iter()
         .filter_map(|k| names.get(*k).map(String::as_str))
         .collect();
     format!(
         "{} of the {} training meshes were registered as their mirror images, to the side of \
-         the alignment reference, which every member takes: {}.",
+         the alignment reference{side}, which every member takes: {}.",
         listed.len(),
         names.len(),
         listed.join(", ")
@@ -373,6 +397,8 @@ pub fn evaluate_model(args: &EvaluateArgs) -> CliResult {
     let aligned = stored.training.to_f64();
     let faces: Vec<&[[u32; 3]]> = file.training_faces.iter().map(Vec::as_slice).collect();
     let test_meshes: Vec<Mesh> = test.iter().map(|m| m.mesh.clone()).collect();
+    let test_names: Vec<String> = test.iter().map(|m| m.name.clone()).collect();
+    let test_sides = laterality_of(args.laterality.as_deref())?.sides_of(&test_names)?;
 
     let step = Instant::now();
     let mut stages = Stages::new(&[("evaluation", 1.0)]);
@@ -383,6 +409,7 @@ pub fn evaluate_model(args: &EvaluateArgs) -> CliResult {
         &aligned,
         &faces,
         &test_meshes,
+        &test_sides,
         samples,
         seed,
         &stages,

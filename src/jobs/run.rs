@@ -5,9 +5,9 @@ use tokio::runtime::Handle;
 use super::cohort::{DrawnCohort, run_cohort_job};
 use super::fit::fit_model;
 use super::split::holdout_split;
-use crate::mesh::Mesh;
+use crate::mesh::{Laterality, Mesh};
 use crate::models::progress::Progress;
-use crate::models::{FitOutcome, ModelError, ModelType};
+use crate::models::{FitInput, FitOutcome, ModelError, ModelType};
 use crate::store::jobs::{Job, JobKind};
 use crate::store::models::{NewModel, Provenance};
 use crate::store::{Store, StoreError};
@@ -38,6 +38,8 @@ pub enum RunError {
 struct Split {
     training: Vec<Mesh>,
     holdout: Vec<Mesh>,
+    training_laterality: Vec<Option<Laterality>>,
+    holdout_laterality: Vec<Option<Laterality>>,
     provenance: Provenance,
     template_indices: Vec<usize>,
 }
@@ -48,19 +50,21 @@ fn load_split(
     job: &Job,
     templates: &[&str],
 ) -> Result<Split, RunError> {
-    let meshes = handle.block_on(store.dataset_mesh_hashes(&job.dataset_id))?;
-    let ids: Vec<String> = meshes.iter().map(|(id, _)| id.clone()).collect();
+    let meshes = handle.block_on(store.dataset_mesh_keys(&job.dataset_id))?;
+    let ids: Vec<String> = meshes.iter().map(|m| m.id.clone()).collect();
     let (training_ids, holdout_ids) =
         holdout_split(&ids, job.holdout_fraction, job.seed, templates);
+    let key = |wanted: &String| meshes.iter().find(|m| &m.id == wanted);
     let sha = |wanted: &[String]| -> Vec<String> {
         wanted
             .iter()
-            .filter_map(|w| {
-                meshes
-                    .iter()
-                    .find(|(id, _)| id == w)
-                    .map(|(_, s)| s.clone())
-            })
+            .filter_map(|w| key(w).map(|m| m.sha256.clone()))
+            .collect()
+    };
+    let sides = |wanted: &[String]| -> Vec<Option<Laterality>> {
+        wanted
+            .iter()
+            .map(|w| key(w).and_then(|m| m.laterality))
             .collect()
     };
     let load = |wanted: &[String]| -> Result<Vec<Mesh>, StoreError> {
@@ -83,6 +87,8 @@ fn load_split(
     Ok(Split {
         training: load(&training_ids)?,
         holdout: load(&holdout_ids)?,
+        training_laterality: sides(&training_ids),
+        holdout_laterality: sides(&holdout_ids),
         provenance: Provenance {
             training_sha256: sha(&training_ids),
             holdout_sha256: sha(&holdout_ids),
@@ -128,14 +134,15 @@ fn run_fit_job(
         .ok_or_else(|| RunError::Invalid(format!("unknown model type {}", job.model_type)))?;
     let params = model_type.parse_params(&job.params)?;
     let split = load_split(handle, store, job, &params.template_mesh_ids())?;
-    let outcome: FitOutcome = fit_model(
-        &params,
-        &split.training,
-        &split.holdout,
-        &split.template_indices,
-        job.seed,
-        progress,
-    )?;
+    let input = FitInput {
+        training: &split.training,
+        holdout: &split.holdout,
+        training_laterality: &split.training_laterality,
+        holdout_laterality: &split.holdout_laterality,
+        template_indices: &split.template_indices,
+        seed: job.seed,
+    };
+    let outcome: FitOutcome = fit_model(&params, &input, progress)?;
     crate::telemetry::record_fit_stages(
         &job.model_type,
         outcome

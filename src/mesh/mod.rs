@@ -9,6 +9,7 @@ pub mod error;
 pub(crate) mod fixtures;
 pub mod format;
 pub mod io;
+pub mod laterality;
 mod manifold;
 pub mod measures;
 mod orient;
@@ -20,6 +21,7 @@ pub mod validate;
 
 pub use error::MeshError;
 pub use format::Format;
+pub use laterality::Laterality;
 
 /// A triangle surface mesh.
 ///

@@ -11,8 +11,8 @@ use crate::geometry::distance::directed;
 use crate::geometry::kdtree::PointCloudIndex;
 use crate::geometry::points::{centroid, mat_vec, rms_radius, sub};
 use crate::geometry::{GeometryError, RigidTransform, axis_permutation_rotations};
-use crate::mesh::Mesh;
 use crate::mesh::simplify::simplify;
+use crate::mesh::{Laterality, Mesh};
 use crate::models::ModelError;
 
 /// Default vertex budget of a mesh before it is registered (and, for the ASMG family, before
@@ -48,6 +48,11 @@ pub struct AlignmentParams {
     /// false.
     #[serde(default)]
     pub mirror: bool,
+    /// With `mirror`, the side of the reference, which every shape of the model has: known
+    /// when the user gave the side of training meshes, and then a new mesh of a given side
+    /// takes it without comparison. Absent from models stored before it existed: unknown.
+    #[serde(default)]
+    pub laterality: Option<Laterality>,
 }
 
 impl Default for AlignmentParams {
@@ -60,6 +65,7 @@ impl Default for AlignmentParams {
             refine_points: 600,
             finish_iterations: 20,
             mirror: false,
+            laterality: None,
         }
     }
 }

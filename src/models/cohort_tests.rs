@@ -18,7 +18,11 @@ impl ShapeModel for Copier {
         }
         Ok(Draw { mesh, cluster: 0 })
     }
-    fn reconstruct(&self, _: &Mesh) -> Result<Reconstruction, ModelError> {
+    fn reconstruct(
+        &self,
+        _: &Mesh,
+        _: Option<crate::mesh::Laterality>,
+    ) -> Result<Reconstruction, ModelError> {
         unreachable!("not used by cohorts")
     }
 }

@@ -11,7 +11,7 @@ use crate::eval::metrics::{self, DistanceSummary, IndexedShapes};
 use crate::eval::surface_metrics::{Surface, paired_point_to_surface, point_to_surface_to_nearest};
 use crate::geometry::distance::SurfaceDistances;
 use crate::geometry::pca::Sampling;
-use crate::mesh::Mesh;
+use crate::mesh::{Laterality, Mesh};
 
 /// Added to the fit seed for the specificity samples, so they differ from cohort draws.
 const SPECIFICITY_SEED_OFFSET: u64 = 0x5bec_1f1c;
@@ -71,6 +71,7 @@ pub fn evaluate(
     aligned_training: &[Vec<[f64; 3]>],
     training_faces: &[&[[u32; 3]]],
     holdout: &[Mesh],
+    holdout_laterality: &[Option<Laterality>],
     samples: usize,
     seed: u64,
     stages: &Stages,
@@ -80,7 +81,7 @@ pub fn evaluate(
     let mut reconstructions: Vec<Mesh> = Vec::with_capacity(holdout.len());
     let (mut originals, mut normalised, mut atlas_of) = (Vec::new(), Vec::new(), Vec::new());
     for (i, mesh) in holdout.iter().enumerate() {
-        let r = model.reconstruct(mesh)?;
+        let r = model.reconstruct(mesh, holdout_laterality.get(i).copied().flatten())?;
         reconstructions.push(r.mesh);
         atlas_of.push(r.atlas);
         originals.push(r.aligned_input);

@@ -13,7 +13,7 @@ use super::{
     ReferencePopulation, StageTiming, TrainingShapes,
 };
 use crate::eval::privacy::DEFAULT_PERCENTILE;
-use crate::mesh::Mesh;
+use crate::mesh::{Laterality, Mesh};
 
 /// The meshes and settings of one fit.
 #[derive(Debug, Clone, Copy)]
@@ -22,6 +22,10 @@ pub struct FitInput<'a> {
     pub training: &'a [Mesh],
     /// Held-out meshes for generalisation and matching.
     pub holdout: &'a [Mesh],
+    /// The side of each training mesh where the user gave it (empty, or one per mesh).
+    pub training_laterality: &'a [Option<Laterality>],
+    /// The side of each held-out mesh where the user gave it (empty, or one per mesh).
+    pub holdout_laterality: &'a [Option<Laterality>],
     /// Positions in `training` of the meshes the user named as template or atlases, in the
     /// order named (empty: the model chooses).
     pub template_indices: &'a [usize],
@@ -29,10 +33,27 @@ pub struct FitInput<'a> {
     pub seed: u64,
 }
 
-impl FitInput<'_> {
+impl<'a> FitInput<'a> {
+    /// The meshes alone: no side given, the model chooses its template or atlases.
+    pub fn new(training: &'a [Mesh], holdout: &'a [Mesh], seed: u64) -> Self {
+        Self {
+            training,
+            holdout,
+            training_laterality: &[],
+            holdout_laterality: &[],
+            template_indices: &[],
+            seed,
+        }
+    }
+
     /// Position in `training` of the first mesh the user named as template or atlas.
     pub fn template_index(&self) -> Option<usize> {
         self.template_indices.first().copied()
+    }
+
+    /// The side the user gave held-out mesh `i`, if any.
+    pub fn holdout_side(&self, i: usize) -> Option<Laterality> {
+        self.holdout_laterality.get(i).copied().flatten()
     }
 }
 
@@ -59,6 +80,8 @@ pub struct FittedParts<M> {
     /// Positions (in the training order) of the training meshes registered as their
     /// mirror images (see [`super::sides`]).
     pub mirrored_training: Vec<usize>,
+    /// The side every shape of the model has, when known (see [`super::sides`]).
+    pub laterality: Option<Laterality>,
 }
 
 /// Evaluates the fitted model on the held-out meshes and samples, and assembles the
@@ -78,6 +101,7 @@ pub fn finish<M: FittedModel + 'static>(
         &parts.aligned_training,
         &training_faces,
         input.holdout,
+        input.holdout_laterality,
         input.training.len(),
         input.seed,
         &stages,
@@ -116,6 +140,7 @@ pub fn finish<M: FittedModel + 'static>(
         fidelity: Some(fidelity),
         beta_choices: parts.beta_choices,
         mirrored_training: parts.mirrored_training,
+        laterality: parts.laterality,
     };
     Ok(FitOutcome {
         model: StoredModel {

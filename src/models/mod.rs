@@ -46,7 +46,7 @@ pub use stored::{FittedModel, StoredModel};
 use crate::eval::privacy::CorrespondedShapes;
 use crate::eval::privacy::PrivacyThreshold;
 use crate::geometry::pca::Sampling;
-use crate::mesh::Mesh;
+use crate::mesh::{Laterality, Mesh};
 
 /// A model's reconstruction of a mesh.
 #[derive(Debug, Clone)]
@@ -90,8 +90,13 @@ pub trait ShapeModel {
     fn atlases(&self) -> &[Mesh];
     /// Draws one new shape.
     fn sample(&self, rng: &mut ChaCha8Rng, sampling: Sampling) -> Result<Draw, ModelError>;
-    /// Reconstructs an unseen mesh through the model.
-    fn reconstruct(&self, mesh: &Mesh) -> Result<Reconstruction, ModelError>;
+    /// Reconstructs an unseen mesh through the model; `laterality` is its side when the user
+    /// gave it (a model that learns both sides on one takes it without comparison).
+    fn reconstruct(
+        &self,
+        mesh: &Mesh,
+        laterality: Option<Laterality>,
+    ) -> Result<Reconstruction, ModelError>;
     /// The training shapes as the model's generator reproduces them, `[atlas][shape]`
     /// (`[N_μm, 3]` mm each), given the normalised shapes `[atlas][shape]`: what the privacy
     /// guard compares members with, so that a member (a decoder output) is measured against
@@ -311,6 +316,11 @@ pub struct ModelSummary {
     /// empty for models fitted without it.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub mirrored_training: Vec<usize>,
+    /// With `mirror`, the side (`left` or `right`) every shape of the model, and so every
+    /// cohort member, has: the alignment reference's, known when the user gave the side of
+    /// training meshes; absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub laterality: Option<Laterality>,
 }
 
 /// The soft clusters of a multi-atlas fit (thesis eq. 5.13), in mesh order.

@@ -15,6 +15,7 @@ use crate::eval::metrics::parallel_map;
 use crate::geometry::GeometryError;
 use crate::geometry::distance::surface_distances_indexed;
 use crate::geometry::kdtree::PointCloudIndex;
+use crate::mesh::Laterality;
 
 /// Points per candidate compared (every k-th of each).
 pub const SIDE_POINTS: usize = 600;
@@ -48,21 +49,38 @@ impl Indexed {
     }
 }
 
-/// Which meshes take their mirror image (`true`): starting from the side nearer the
-/// `reference`'s own registration (which stays as it is), each mesh in turn takes the side
-/// whose mean distance to the other meshes, as currently taken, is smaller, until a sweep
-/// changes nothing. Deterministic for given candidates.
+/// The side each training mesh takes, and the side of the model's shapes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SideChoice {
+    /// Per mesh, whether it takes its mirror image.
+    pub mirrored: Vec<bool>,
+    /// The side of the reference, which every shape of the model then has: known when the
+    /// user gave the side of the reference or of any other mesh, `None` otherwise.
+    pub laterality: Option<Laterality>,
+}
+
+/// Which meshes take their mirror image: starting from the side nearer the `reference`'s
+/// own registration (which stays as it is), each mesh in turn takes the side whose mean
+/// distance to the other meshes, as currently taken, is smaller, until a sweep changes
+/// nothing. A mesh whose side the user `given` (empty, or one entry per mesh) takes the
+/// reference's side without a vote: the reference's own side when given, otherwise the
+/// side that lays the given meshes nearer the reference. Deterministic for given candidates.
 pub fn choose_sides(
     candidates: &[SideCandidates],
     reference: usize,
-) -> Result<Vec<bool>, GeometryError> {
+    given: &[Option<Laterality>],
+) -> Result<SideChoice, GeometryError> {
     let indexed = candidates
         .iter()
         .map(|c| Ok([Indexed::new(&c.own)?, Indexed::new(&c.mirrored)?]))
         .collect::<Result<Vec<_>, GeometryError>>()?;
     let n = indexed.len();
+    let given = |i: usize| given.get(i).copied().flatten();
     if reference >= n {
-        return Ok(vec![false; n]);
+        return Ok(SideChoice {
+            mirrored: vec![false; n],
+            laterality: None,
+        });
     }
     // distance[i][j][2·a + b]: mesh i taken as side a (0 own, 1 mirrored) against mesh j
     // taken as side b, computed once for all sweeps.
@@ -72,13 +90,35 @@ pub fn choose_sides(
             .map(|j| std::array::from_fn(|k| indexed[i][k / 2].distance(&indexed[j][k % 2])))
             .collect()
     });
-    let mut mirrored: Vec<bool> = (0..n)
-        .map(|i| distance[i][reference][2] < distance[i][reference][0])
+    let to_reference = |i: usize, mirrored: bool| distance[i][reference][2 * usize::from(mirrored)];
+    let laterality = given(reference).or_else(|| {
+        let cost = |side: Laterality| -> f64 {
+            (0..n)
+                .filter_map(|i| given(i).map(|g| to_reference(i, g != side)))
+                .sum()
+        };
+        let [left, right] = Laterality::ALL;
+        (0..n).any(|i| given(i).is_some()).then(|| {
+            if cost(right) < cost(left) {
+                right
+            } else {
+                left
+            }
+        })
+    });
+    let fixed: Vec<Option<bool>> = (0..n)
+        .map(|i| match (given(i), laterality) {
+            _ if i == reference => Some(false),
+            (Some(g), Some(side)) => Some(g != side),
+            _ => None,
+        })
         .collect();
-    mirrored[reference] = false;
+    let mut mirrored: Vec<bool> = (0..n)
+        .map(|i| fixed[i].unwrap_or_else(|| to_reference(i, true) < to_reference(i, false)))
+        .collect();
     for _ in 0..MAX_SWEEPS {
         let mut changed = false;
-        for i in (0..n).filter(|i| *i != reference) {
+        for i in (0..n).filter(|i| fixed[*i].is_none()) {
             let (mut own, mut flipped) = (0.0, 0.0);
             for j in (0..n).filter(|j| *j != i) {
                 let taken = usize::from(mirrored[j]);
@@ -93,12 +133,30 @@ pub fn choose_sides(
             break;
         }
     }
-    Ok(mirrored)
+    Ok(SideChoice {
+        mirrored,
+        laterality,
+    })
+}
+
+/// Whether a new mesh takes its mirror image: when the user `given` its side and the model's
+/// side is known, exactly when the two differ; otherwise when its mirror image lies nearer
+/// the nearest of the `atlases` (each `[N_μ, 3]` mm, the model's side) than the mesh as it is.
+pub fn takes_mirrored(
+    candidate: &SideCandidates,
+    atlases: &[&[[f64; 3]]],
+    given: Option<Laterality>,
+    model: Option<Laterality>,
+) -> Result<bool, GeometryError> {
+    match (given, model) {
+        (Some(g), Some(m)) => Ok(g != m),
+        _ => nearer_mirrored(candidate, atlases),
+    }
 }
 
 /// Whether a new mesh takes its mirror image: when that lies nearer the nearest of the
 /// `atlases` (each `[N_μ, 3]` mm, the model's side) than the mesh as it is.
-pub fn nearer_mirrored(
+fn nearer_mirrored(
     candidate: &SideCandidates,
     atlases: &[&[[f64; 3]]],
 ) -> Result<bool, GeometryError> {
@@ -155,8 +213,9 @@ mod tests {
             .enumerate()
             .map(|(i, f)| candidates_of(&chiral(1.0 + 0.05 * i as f64), *f))
             .collect();
-        let chosen = choose_sides(&candidates, 0).unwrap();
-        assert_eq!(chosen, flipped_inputs.to_vec());
+        let chosen = choose_sides(&candidates, 0, &[]).unwrap();
+        assert_eq!(chosen.mirrored, flipped_inputs.to_vec());
+        assert_eq!(chosen.laterality, None);
     }
 
     #[test]
@@ -168,9 +227,56 @@ mod tests {
             .collect();
         // The reference (0) was given mirrored: the others follow it.
         assert_eq!(
-            choose_sides(&candidates, 0).unwrap(),
+            choose_sides(&candidates, 0, &[]).unwrap().mirrored,
             vec![false, true, true, true]
         );
+    }
+
+    /// Five chiral shapes, the second and fourth given as mirror images.
+    fn population() -> Vec<SideCandidates> {
+        [false, true, false, true, false]
+            .iter()
+            .enumerate()
+            .map(|(i, f)| candidates_of(&chiral(1.0 + 0.05 * i as f64), *f))
+            .collect()
+    }
+
+    #[test]
+    fn sides_the_user_gave_are_kept_even_against_the_shapes() {
+        use Laterality::{Left, Right};
+        // Mesh 2 is of the reference's form but said to be a right one: it is mirrored.
+        let given = [Some(Left), Some(Right), Some(Right), None, None];
+        let chosen = choose_sides(&population(), 0, &given).unwrap();
+        assert_eq!(chosen.laterality, Some(Left));
+        assert_eq!(chosen.mirrored[..3], [false, true, true]);
+        // Meshes without a side still vote: mesh 3 (mirrored input) joins the reference.
+        assert!(chosen.mirrored[3]);
+    }
+
+    #[test]
+    fn without_the_references_side_the_given_ones_name_it() {
+        use Laterality::{Left, Right};
+        // Mesh 1 (mirrored input) is a left one, so the reference's form is right.
+        let given = [None, Some(Left), None, None, None];
+        let chosen = choose_sides(&population(), 0, &given).unwrap();
+        assert_eq!(chosen.laterality, Some(Right));
+        assert_eq!(chosen.mirrored, vec![false, true, false, true, false]);
+        let given = [None, None, Some(Left), None, None];
+        let chosen = choose_sides(&population(), 0, &given).unwrap();
+        assert_eq!(chosen.laterality, Some(Left));
+        assert_eq!(chosen.mirrored, vec![false, true, false, true, false]);
+    }
+
+    #[test]
+    fn a_new_mesh_of_a_given_side_takes_the_models_side() {
+        use Laterality::{Left, Right};
+        let atlas = chiral(1.0);
+        let as_is = candidates_of(&chiral(1.1), false);
+        assert!(takes_mirrored(&as_is, &[&atlas], Some(Right), Some(Left)).unwrap());
+        assert!(!takes_mirrored(&as_is, &[&atlas], Some(Left), Some(Left)).unwrap());
+        // Without either side, the atlas decides.
+        assert!(!takes_mirrored(&as_is, &[&atlas], Some(Right), None).unwrap());
+        assert!(!takes_mirrored(&as_is, &[&atlas], None, Some(Left)).unwrap());
     }
 
     #[test]

@@ -203,7 +203,11 @@ mod tests {
                 .for_each(|p| *p = p.map(|c| self.1 * c));
             Ok(Draw { mesh, cluster: 0 })
         }
-        fn reconstruct(&self, _: &Mesh) -> Result<Reconstruction, ModelError> {
+        fn reconstruct(
+            &self,
+            _: &Mesh,
+            _: Option<crate::mesh::Laterality>,
+        ) -> Result<Reconstruction, ModelError> {
             unreachable!("not used by cohorts")
         }
     }

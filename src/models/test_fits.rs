@@ -10,6 +10,8 @@ pub(crate) fn fitted(name: &str, training: &[Mesh], params: serde_json::Value) -
     let input = FitInput {
         training,
         holdout: &[],
+        training_laterality: &[],
+        holdout_laterality: &[],
         template_indices: &[],
         seed: 1,
     };

@@ -159,11 +159,20 @@ fn atlas_sentence(s: &ModelSummary) -> String {
     )
 }
 
-/// Which training meshes were registered as their mirror images (empty without any).
+/// Which training meshes were registered as their mirror images, and the side of the
+/// members when known (empty without either).
 fn mirrored_note(m: &ModelPage<'_>) -> String {
     let positions = &m.summary.mirrored_training;
+    let side = m.summary.laterality.map_or(String::new(), |side| {
+        format!(" (the patient's {side}, from the sides given with the meshes)")
+    });
     if positions.is_empty() {
-        return String::new();
+        return match m.summary.laterality {
+            Some(_) => format!(
+                "<p class=\"note\">Every member is of the side of the training meshes{side}.</p>"
+            ),
+            None => String::new(),
+        };
     }
     let ids: Vec<String> = positions
         .iter()
@@ -172,7 +181,7 @@ fn mirrored_note(m: &ModelPage<'_>) -> String {
     format!(
         "<p class=\"note\">{} of the {} training meshes were registered as their mirror \
          images (<code>mirror</code>), so that all are learned on the side of the alignment \
-         reference, which every member takes: {}.</p>",
+         reference{side}, which every member takes: {}.</p>",
         positions.len(),
         m.training_mesh_ids.len(),
         ids.join(", ")

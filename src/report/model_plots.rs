@@ -283,6 +283,17 @@ mod tests {
             html.contains("which every member takes: a, c.</p>"),
             "{html}"
         );
+        s.laterality = Some(crate::mesh::Laterality::Left);
+        let sided = model_page(&ModelPage {
+            training_mesh_ids: &ids,
+            ..page(&s)
+        });
+        assert!(
+            sided.contains(
+                "reference (the patient's left, from the sides given with the meshes), which"
+            ),
+            "{sided}"
+        );
     }
 
     #[test]

@@ -9,7 +9,7 @@ use sqlx::AssertSqlSafe;
 
 use super::{Page, Store, StoreError, new_id, now};
 use crate::mesh::validate::Ingested;
-use crate::mesh::{Format, Mesh, codec};
+use crate::mesh::{Format, Laterality, Mesh, codec};
 
 /// A mesh to store: validated geometry plus how it arrived.
 #[derive(Debug)]
@@ -22,6 +22,19 @@ pub struct NewMesh {
     pub ingested: Ingested,
     /// How the mesh was derived, when not uploaded as a mesh (JSON).
     pub source: Option<serde_json::Value>,
+    /// The side of a paired organ, when the user gave it.
+    pub laterality: Option<Laterality>,
+}
+
+/// What a fit needs to know of a dataset's mesh before loading its geometry.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MeshKey {
+    /// Identifier.
+    pub id: String,
+    /// SHA-256 of the stored geometry (hex).
+    pub sha256: String,
+    /// The side of a paired organ, when the user gave it.
+    pub laterality: Option<Laterality>,
 }
 
 /// A stored mesh's metadata (the geometry is fetched separately).
@@ -62,6 +75,11 @@ pub struct MeshRecord {
     /// How the mesh was derived, when not uploaded as a mesh.
     #[schema(value_type = Option<Object>)]
     pub source: Option<serde_json::Value>,
+    /// The side of a paired organ (`left` or `right` kidney, lung, ...) when the user gave it;
+    /// absent otherwise. Models that learn both sides on one (`mirror`) take it as given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<crate::mesh::Laterality>)]
+    pub laterality: Option<Laterality>,
     /// Upload time (RFC 3339, UTC).
     pub created_at: String,
 }
@@ -77,7 +95,7 @@ pub struct MeshWarning {
 
 const SELECT_MESH: &str = "SELECT id, dataset_id, name, source_format, vertex_count, face_count, \
      original_vertex_count, volume_ml, area_cm2, watertight, components, euler_characteristic, \
-     bbox_min, bbox_max, warnings, source, sha256, created_at FROM meshes";
+     bbox_min, bbox_max, warnings, source, laterality, sha256, created_at FROM meshes";
 
 fn json_column<T: serde::de::DeserializeOwned>(
     row: &AnyRow,
@@ -109,9 +127,17 @@ fn mesh_record(row: &AnyRow) -> Result<MeshRecord, StoreError> {
             .map(|s| serde_json::from_str(&s))
             .transpose()
             .map_err(|e| StoreError::Corrupt(format!("meshes.source: {e}")))?,
+        laterality: laterality_column(row)?,
         sha256: row.try_get("sha256")?,
         created_at: row.try_get("created_at")?,
     })
+}
+
+fn laterality_column(row: &AnyRow) -> Result<Option<Laterality>, StoreError> {
+    let text: Option<String> = row.try_get("laterality")?;
+    text.map(|t| t.parse())
+        .transpose()
+        .map_err(|e| StoreError::Corrupt(format!("meshes.laterality: {e}")))
 }
 
 fn to_json<T: Serialize>(value: &T) -> String {
@@ -224,19 +250,41 @@ impl Store {
         Ok((items, total))
     }
 
-    /// Ids and SHA-256 of a dataset's meshes in upload order.
-    pub async fn dataset_mesh_hashes(
-        &self,
-        dataset_id: &str,
-    ) -> Result<Vec<(String, String)>, StoreError> {
+    /// Id, SHA-256 and side of a dataset's meshes in upload order.
+    pub async fn dataset_mesh_keys(&self, dataset_id: &str) -> Result<Vec<MeshKey>, StoreError> {
         self.dataset(dataset_id).await?;
-        let rows = sqlx::query("SELECT id, sha256 FROM meshes WHERE dataset_id = $1 ORDER BY seq")
-            .bind(dataset_id)
-            .fetch_all(&self.read)
-            .await?;
+        let rows = sqlx::query(
+            "SELECT id, sha256, laterality FROM meshes WHERE dataset_id = $1 ORDER BY seq",
+        )
+        .bind(dataset_id)
+        .fetch_all(&self.read)
+        .await?;
         rows.iter()
-            .map(|r| Ok((r.try_get("id")?, r.try_get("sha256")?)))
+            .map(|r| {
+                Ok(MeshKey {
+                    id: r.try_get("id")?,
+                    sha256: r.try_get("sha256")?,
+                    laterality: laterality_column(r)?,
+                })
+            })
             .collect()
+    }
+
+    /// Sets (or, with `None`, clears) the side of a mesh; the updated record.
+    pub async fn set_mesh_laterality(
+        &self,
+        id: &str,
+        laterality: Option<Laterality>,
+    ) -> Result<MeshRecord, StoreError> {
+        let done = sqlx::query("UPDATE meshes SET laterality = $1 WHERE id = $2")
+            .bind(laterality.map(Laterality::as_str))
+            .bind(id)
+            .execute(&self.write)
+            .await?;
+        if done.rows_affected() == 0 {
+            return Err(StoreError::not_found("mesh", id));
+        }
+        self.mesh(id).await
     }
 
     /// Deletes one mesh.
@@ -311,14 +359,15 @@ async fn insert_one(
             })
             .collect(),
         source: new.source,
+        laterality: new.laterality,
         created_at: now(),
     };
     sqlx::query(AssertSqlSafe(format!(
         "INSERT INTO meshes (id, dataset_id, name, source_format, vertex_count, face_count, \
          original_vertex_count, volume_ml, area_cm2, watertight, components, \
          euler_characteristic, bbox_min, bbox_max, warnings, source, sha256, geometry, \
-         created_at, seq) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, \
-         $14, $15, $16, $17, $18, $19, {next_seq})"
+         created_at, laterality, seq) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, \
+         $12, $13, $14, $15, $16, $17, $18, $19, $20, {next_seq})"
     )))
     .bind(&record.id)
     .bind(&record.dataset_id)
@@ -339,6 +388,7 @@ async fn insert_one(
     .bind(&record.sha256)
     .bind(geometry)
     .bind(&record.created_at)
+    .bind(record.laterality.map(Laterality::as_str))
     .execute(&mut **tx)
     .await?;
     Ok(record)

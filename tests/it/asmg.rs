@@ -210,3 +210,96 @@ async fn asmg_params_are_checked_at_submission() {
         assert_eq!(problem["field"], format!("params.{field}"), "{problem}");
     }
 }
+
+/// Uploads `meshes` in one multipart request with `?laterality=side`; their ids.
+async fn upload_sided(
+    s: &TestServer,
+    dataset: &str,
+    meshes: &[(String, Vec<u8>)],
+    side: &str,
+) -> Vec<String> {
+    let mut form = Form::new();
+    for (name, bytes) in meshes {
+        form = form.part("file", Part::bytes(bytes.clone()).file_name(name.clone()));
+    }
+    let url = s.url(&format!("/v1/datasets/{dataset}/meshes?laterality={side}"));
+    let body = expect_json(
+        s.client.post(url).multipart(form).send().await.unwrap(),
+        StatusCode::CREATED,
+    )
+    .await;
+    body["meshes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| {
+            assert_eq!(m["laterality"], side);
+            m["id"].as_str().unwrap().to_owned()
+        })
+        .collect()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn with_mirror_the_given_sides_decide_which_meshes_are_mirrored() {
+    let s = TestServer::start().await;
+    let dataset = s.dataset("paired", "kidney").await;
+    // Half the phantoms as they are ("left"), half as mirror images ("right").
+    let files: Vec<(String, Vec<u8>, bool)> = phantom::generate(Family::Lv, 8, 6)
+        .into_iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let mut small = simplify(&p.mesh, PHANTOM_VERTICES).unwrap().mesh;
+            let right = k % 2 == 1;
+            if right {
+                small.vertices.iter_mut().for_each(|v| v[0] = -v[0]);
+                small.faces.iter_mut().for_each(|f| f.swap(1, 2));
+            }
+            (
+                format!("{}.stl", p.name),
+                io::write(&small, Format::Stl),
+                right,
+            )
+        })
+        .collect();
+    let of_side = |right: bool| -> Vec<(String, Vec<u8>)> {
+        files
+            .iter()
+            .filter(|f| f.2 == right)
+            .map(|f| (f.0.clone(), f.1.clone()))
+            .collect()
+    };
+    let left = upload_sided(&s, &dataset, &of_side(false), "left").await;
+    let right = upload_sided(&s, &dataset, &of_side(true), "right").await;
+    let mut params = tiny_params();
+    params["mirror"] = json!(true);
+    let body = json!({"dataset_id": dataset, "model_type": "asmg", "params": params, "seed": 1, "holdout_fraction": 0.25});
+    let job = submit(&s, &body).await;
+    let (done, _) = wait_for(&s, job["id"].as_str().unwrap(), Duration::from_secs(300)).await;
+    assert_eq!(done["status"], "succeeded", "{done}");
+    let model = get(
+        &s,
+        &format!("/v1/models/{}", done["model_id"].as_str().unwrap()),
+    )
+    .await;
+    let side = model["laterality"].as_str().expect("the model's side");
+    let other = if side == "left" { &right } else { &left };
+    let training: Vec<&str> = model["provenance"]["training_mesh_ids"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    let mut expected: Vec<&str> = training
+        .iter()
+        .copied()
+        .filter(|id| other.iter().any(|o| o == id))
+        .collect();
+    let mut mirrored: Vec<&str> = model["mirrored_mesh_ids"]
+        .as_array()
+        .map(|a| a.iter().map(|v| v.as_str().unwrap()).collect())
+        .unwrap_or_default();
+    expected.sort_unstable();
+    mirrored.sort_unstable();
+    assert!(!expected.is_empty());
+    assert_eq!(mirrored, expected);
+}

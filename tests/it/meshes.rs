@@ -334,3 +334,81 @@ async fn octet_stream_uploads_and_downloads_for_generated_clients() {
     let upload = &spec["paths"]["/v1/datasets/{id}/meshes"]["post"]["requestBody"]["content"];
     assert!(upload["application/octet-stream"].is_object(), "{upload}");
 }
+
+#[tokio::test]
+async fn the_side_of_a_mesh_is_given_at_upload_and_changed_later() {
+    let s = TestServer::start().await;
+    let dataset = s.dataset("kidneys", "kidney").await;
+    let phantoms = phantom::generate(Family::Liver, 2, 4);
+    let upload = async |k: usize, query: &str| {
+        s.client
+            .post(s.url(&format!("/v1/datasets/{dataset}/meshes?format=obj{query}")))
+            .body(io::write(&phantoms[k].mesh, Format::Obj))
+            .send()
+            .await
+            .expect("request")
+    };
+    let left = expect_json(upload(0, "&laterality=left").await, StatusCode::CREATED).await;
+    assert_eq!(left["laterality"], "left");
+    let wrong = upload(1, "&laterality=both").await;
+    let problem = expect_problem(
+        wrong,
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "request.invalid_field",
+    )
+    .await;
+    assert_eq!(problem["field"], "laterality");
+    assert!(
+        problem["detail"]
+            .as_str()
+            .unwrap()
+            .contains("use left or right")
+    );
+    assert_eq!(s.mesh_count(&dataset).await, 1);
+    let unknown = expect_json(upload(1, "").await, StatusCode::CREATED).await;
+    assert!(unknown.get("laterality").is_none(), "{unknown}");
+
+    let patch = async |id: &str, body: serde_json::Value| {
+        s.client
+            .patch(s.url(&format!("/v1/meshes/{id}")))
+            .json(&body)
+            .send()
+            .await
+            .expect("request")
+    };
+    let id = unknown["id"].as_str().unwrap();
+    let right = expect_json(
+        patch(id, serde_json::json!({"laterality": "right"})).await,
+        StatusCode::OK,
+    )
+    .await;
+    assert_eq!(right["laterality"], "right");
+    let fetched = s
+        .client
+        .get(s.url(&format!("/v1/meshes/{id}")))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(
+        expect_json(fetched, StatusCode::OK).await["laterality"],
+        "right"
+    );
+    // An empty body changes nothing; null clears the side.
+    let same = expect_json(patch(id, serde_json::json!({})).await, StatusCode::OK).await;
+    assert_eq!(same["laterality"], "right");
+    let cleared = expect_json(
+        patch(id, serde_json::json!({"laterality": null})).await,
+        StatusCode::OK,
+    )
+    .await;
+    assert!(cleared.get("laterality").is_none(), "{cleared}");
+    let bad = patch(id, serde_json::json!({"laterality": "up"})).await;
+    expect_problem(
+        bad,
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "request.invalid_field",
+    )
+    .await;
+    let missing = patch("no-such-mesh", serde_json::json!({"laterality": "left"})).await;
+    expect_problem(missing, StatusCode::NOT_FOUND, "mesh.not_found").await;
+}

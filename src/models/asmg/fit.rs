@@ -12,10 +12,10 @@ use super::model::{AsmgModel, embed_mesh, embeddings_of, nn_error};
 use super::monitor::StageMonitor;
 use super::params::{AsmgParams, AtlasChoice};
 use super::registration::{align_sides, side_candidates};
-use crate::mesh::Mesh;
+use crate::mesh::{Laterality, Mesh};
 use crate::models::alignment::{median_resolution_index, simplified};
 use crate::models::progress::{Progress, Stages};
-use crate::models::sides::choose_sides;
+use crate::models::sides::{SideChoice, choose_sides};
 use crate::models::workers::map_items;
 use crate::models::{FitInput, FittedParts, LossCurve, ModelError};
 use crate::nn::{GraphSample, GraphVaeConfig, GraphVaeTraining, TrainedGraphVae, train_graph_vae};
@@ -43,6 +43,8 @@ pub(crate) struct Aligned {
     pub(crate) vertices: Vec<Vec<[f64; 3]>>,
     /// Which training meshes were registered as their mirror images.
     pub(crate) mirrored: Vec<bool>,
+    /// The side of the reference, which every shape takes, when the user gave sides.
+    pub(crate) laterality: Option<Laterality>,
 }
 
 impl Aligned {
@@ -85,6 +87,7 @@ impl Aligned {
 
 pub(crate) fn align_training(
     training: &[Mesh],
+    given: &[Option<Laterality>],
     params: &AsmgParams,
     reference_index: usize,
     stages: &Stages,
@@ -105,10 +108,14 @@ pub(crate) fn align_training(
         },
     )?;
     let candidates: Option<Vec<_>> = registered.iter().map(|s| side_candidates(s)).collect();
-    let mirrored = match candidates {
-        Some(c) => choose_sides(&c, reference_index)?,
-        None => vec![false; registered.len()],
+    let choice = match candidates {
+        Some(c) => choose_sides(&c, reference_index, given)?,
+        None => SideChoice {
+            mirrored: vec![false; registered.len()],
+            laterality: None,
+        },
     };
+    let mirrored = choice.mirrored;
     let (mut meshes, mut vertices) = (Vec::new(), Vec::new());
     for (mut sides, take_mirrored) in registered.into_iter().zip(&mirrored) {
         let chosen = sides.swap_remove(usize::from(*take_mirrored));
@@ -120,6 +127,7 @@ pub(crate) fn align_training(
         meshes,
         vertices,
         mirrored,
+        laterality: choice.laterality,
     })
 }
 
@@ -265,7 +273,14 @@ pub(crate) fn align_input(
     let reference_index = input
         .template_index()
         .unwrap_or_else(|| median_resolution_index(input.training));
-    align_training(input.training, params, reference_index, stages, progress)
+    align_training(
+        input.training,
+        input.training_laterality,
+        params,
+        reference_index,
+        stages,
+        progress,
+    )
 }
 
 /// What the generator is trained on: Ψ, the learned atlas and the training shapes on it.
@@ -308,11 +323,13 @@ pub(crate) fn train_generator_and_build(
         measured: &measured,
         cluster: None,
     };
-    let trained = train_generator(data, params, seed, stages, progress)?;
+    let mut trained = train_generator(data, params, seed, stages, progress)?;
+    trained.model.alignment.laterality = aligned.laterality;
     losses.push(trained.curve);
     Ok(FittedParts {
         model: trained.model,
         mirrored_training: aligned.mirrored_positions(),
+        laterality: aligned.laterality,
         aligned_training: aligned.vertices,
         // The members are compared with these (same atlas vertices, model frame, mm).
         normalised: vec![smoothed],

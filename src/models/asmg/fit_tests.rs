@@ -38,6 +38,8 @@ fn fit(
     let input = FitInput {
         training,
         holdout,
+        training_laterality: &[],
+        holdout_laterality: &[],
         template_indices: &indices,
         seed,
     };
@@ -116,7 +118,7 @@ fn fit_samples_reconstructs_and_round_trips() {
             assert!((a[d] - b[d]).abs() < 1e-4, "{a:?} vs {b:?}");
         }
     }
-    let r = back_model.reconstruct(&holdout[0]).unwrap();
+    let r = back_model.reconstruct(&holdout[0], None).unwrap();
     assert_eq!(r.normalised.len(), atlas.vertex_count());
     assert_eq!(r.aligned_input.len(), holdout[0].vertex_count());
     assert_eq!(r.mesh.faces, atlas.faces);
@@ -146,7 +148,7 @@ fn fit_samples_reconstructs_and_round_trips() {
     let mut stored = serde_json::to_value(back_model).unwrap();
     stored.as_object_mut().unwrap().remove("nonrigid");
     let unrefined: AsmgModel = serde_json::from_value(stored).unwrap();
-    let attention_only = unrefined.reconstruct(&holdout[0]).unwrap().normalised;
+    let attention_only = unrefined.reconstruct(&holdout[0], None).unwrap().normalised;
     let index = crate::geometry::PointCloudIndex::new(&r.aligned_input).unwrap();
     let gap = |shape: &[[f64; 3]]| {
         shape.iter().map(|p| index.nearest(*p).1).sum::<f64>() / shape.len() as f64
@@ -369,7 +371,7 @@ fn with_mirror_the_mirror_images_among_the_training_meshes_take_the_reference_si
     };
     let mut stages = Stages::new(&[("alignment", 1.0)]);
     stages.enter("alignment");
-    let aligned = align_training(&meshes, &params, 0, &stages, &mut Silent).unwrap();
+    let aligned = align_training(&meshes, &[], &params, 0, &stages, &mut Silent).unwrap();
     assert_eq!(aligned.mirrored, given_mirrored.to_vec());
     assert_eq!(aligned.mirrored_positions(), vec![1, 3]);
     // Every registered mesh, mirrored or not, still encloses a positive volume.
@@ -377,8 +379,63 @@ fn with_mirror_the_mirror_images_among_the_training_meshes_take_the_reference_si
         assert!(volume_ml(mesh) > 0.0, "{} ml", volume_ml(mesh));
     }
     // Without the option nothing is mirrored.
-    let plain = align_training(&meshes, &AsmgParams::default(), 0, &stages, &mut Silent).unwrap();
+    let plain = align_training(
+        &meshes,
+        &[],
+        &AsmgParams::default(),
+        0,
+        &stages,
+        &mut Silent,
+    )
+    .unwrap();
     assert_eq!(plain.mirrored, vec![false; 5]);
+}
+
+#[test]
+fn sides_the_user_gave_override_the_shapes_and_name_the_models_side() {
+    use crate::mesh::Laterality::{Left, Right};
+    use crate::models::asmg::registration::{align, align_sides};
+    let meshes: Vec<Mesh> = [false, true, false, true, false]
+        .iter()
+        .enumerate()
+        .map(|(k, m)| {
+            let blob = chiral_blob(k as f64);
+            if *m { mirror_image(&blob) } else { blob }
+        })
+        .collect();
+    let params = AsmgParams {
+        mirror: true,
+        ..AsmgParams::default()
+    };
+    let mut stages = Stages::new(&[("alignment", 1.0)]);
+    stages.enter("alignment");
+    // Mesh 2 has the reference's form but is said to be a left one, the reference a right
+    // one: it is mirrored all the same; mesh 3, without a side, joins the majority.
+    let given = [Some(Right), Some(Left), Some(Left), None, None];
+    let aligned = align_training(&meshes, &given, &params, 0, &stages, &mut Silent).unwrap();
+    assert_eq!(aligned.mirrored, vec![false, true, true, true, false]);
+    assert_eq!(aligned.laterality, Some(Right));
+
+    // A new mesh of a given side takes the model's side without comparison.
+    let alignment = crate::models::alignment::AlignmentParams {
+        laterality: Some(Right),
+        ..params.alignment()
+    };
+    let reference = &aligned.reference;
+    let atlas = [aligned.meshes[0].vertices.as_slice()];
+    let [own, mirrored] =
+        <[_; 2]>::try_from(align_sides(reference, &meshes[4], &alignment, 3000).unwrap())
+            .ok()
+            .unwrap();
+    let taken = |given| {
+        align(reference, &meshes[4], given, &alignment, 3000, &atlas)
+            .unwrap()
+            .0
+    };
+    assert_eq!(taken(Some(Left)).vertices, mirrored.mesh.vertices);
+    assert_eq!(taken(Some(Right)).vertices, own.mesh.vertices);
+    // Without a side, the shape decides: mesh 4 has the reference's form.
+    assert_eq!(taken(None).vertices, own.mesh.vertices);
 }
 
 /// The real KiTS19 kidneys (skipped without `../shared/data/kits19/`): left and right
@@ -408,7 +465,7 @@ fn kits19_kidneys_take_the_side_of_the_reference() {
     };
     let mut stages = Stages::new(&[("alignment", 1.0)]);
     stages.enter("alignment");
-    let aligned = align_training(&meshes, &params, reference, &stages, &mut Silent).unwrap();
+    let aligned = align_training(&meshes, &[], &params, reference, &stages, &mut Silent).unwrap();
     let agreeing = (0..meshes.len())
         .filter(|k| aligned.mirrored[*k] == (sides[*k] != sides[reference]))
         .count();

@@ -24,7 +24,7 @@ use super::registration::align;
 use super::smoothing::Smoother;
 use crate::geometry::cpd::NonRigidParams;
 use crate::geometry::pca::Sampling;
-use crate::mesh::Mesh;
+use crate::mesh::{Laterality, Mesh};
 use crate::models::alignment::AlignmentParams;
 use crate::models::stored::{FittedModel, encode_named};
 use crate::models::{Draw, ModelError, Reconstruction, ShapeModel, StandardLatent, check_cluster};
@@ -390,10 +390,15 @@ impl ShapeModel for AsmgModel {
         self.decode(&codes)
     }
 
-    fn reconstruct(&self, mesh: &Mesh) -> Result<Reconstruction, ModelError> {
+    fn reconstruct(
+        &self,
+        mesh: &Mesh,
+        laterality: Option<Laterality>,
+    ) -> Result<Reconstruction, ModelError> {
         let (aligned, aligned_input) = align(
             &self.reference,
             mesh,
+            laterality,
             &self.alignment,
             self.params.max_vertices,
             &[&self.atlas.vertices],

@@ -2,10 +2,10 @@
 //! alignment reference (the model frame), with the `mirror` option as it is and as its
 //! mirror image (see [`crate::models::sides`]).
 
-use crate::mesh::Mesh;
+use crate::mesh::{Laterality, Mesh};
 use crate::models::ModelError;
 use crate::models::alignment::{self, AlignmentParams, Registration, mirror, simplified};
-use crate::models::sides::{SideCandidates, nearer_mirrored};
+use crate::models::sides::{SideCandidates, takes_mirrored};
 
 /// A mesh registered to the reference, in the model frame.
 pub struct AlignedMesh {
@@ -70,17 +70,19 @@ pub fn side_candidates(sides: &[AlignedMesh]) -> Option<SideCandidates> {
 
 /// A new mesh registered rigidly to `reference`: the simplified mesh in the model frame (for
 /// the networks) and all original vertices in the model frame (mm). With `params.mirror`,
-/// as its mirror image when that lies nearer the nearest of the model's `atlases`.
+/// as its mirror image when the user `given` the other side than the model's, or, without
+/// either side, when its mirror image lies nearer the nearest of the model's `atlases`.
 pub fn align(
     reference: &Mesh,
     mesh: &Mesh,
+    given: Option<Laterality>,
     params: &AlignmentParams,
     max_vertices: usize,
     atlases: &[&[[f64; 3]]],
 ) -> Result<(Mesh, Vec<[f64; 3]>), ModelError> {
     let mut sides = align_sides(reference, mesh, params, max_vertices)?;
     let take_mirrored = match side_candidates(&sides) {
-        Some(candidates) => nearer_mirrored(&candidates, atlases)?,
+        Some(candidates) => takes_mirrored(&candidates, atlases, given, params.laterality)?,
         None => false,
     };
     let chosen = sides.swap_remove(usize::from(take_mirrored));

@@ -31,7 +31,7 @@ fn one_refinement_step_lowers_the_refinement_loss() {
     };
     let mut stages = Stages::new(&[("alignment", 1.0)]);
     stages.enter("alignment");
-    let aligned = align_training(&meshes, &params.asmg, 0, &stages, &mut Silent).unwrap();
+    let aligned = align_training(&meshes, &[], &params.asmg, 0, &stages, &mut Silent).unwrap();
     let samples = aligned.samples(&params.asmg);
     let config = GraphVaeConfig::new().with_d_x(6);
     let training = GraphVaeTraining {

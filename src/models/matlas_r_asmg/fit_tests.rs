@@ -36,6 +36,8 @@ fn fit(
     let input = FitInput {
         training,
         holdout,
+        training_laterality: &[],
+        holdout_laterality: &[],
         template_indices: &[],
         seed: 3,
     };
@@ -134,7 +136,7 @@ fn two_atlases_find_the_two_topologies_and_draw_from_each() {
     for (a, b) in redrawn.mesh.vertices.iter().zip(&draws[3].mesh.vertices) {
         assert!((0..3).all(|d| (a[d] - b[d]).abs() < 1e-4), "{a:?} vs {b:?}");
     }
-    let r = back.reconstruct(&holdout[0]).unwrap();
+    let r = back.reconstruct(&holdout[0], None).unwrap();
     assert_eq!(r.mesh.faces, atlases[r.atlas].faces);
     assert_eq!(r.atlas, winning_cluster(&clusters.holdout[0]));
 }

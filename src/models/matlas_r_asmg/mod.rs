@@ -319,15 +319,20 @@ fn fit(
         progress,
     )?;
     losses.extend(generators.curves);
+    let mut parts = generators.models;
+    for part in &mut parts {
+        part.alignment.laterality = aligned.laterality;
+    }
     let model = MatlasModel::new(
-        generators.models,
+        parts,
         priors(&memberships.weights, count),
         memberships.alpha,
     )?;
     let holdout = input
         .holdout
         .iter()
-        .map(|mesh| model.cluster_weights(mesh))
+        .enumerate()
+        .map(|(i, mesh)| model.cluster_weights(mesh, input.holdout_side(i)))
         .collect::<Result<Vec<_>, _>>()?;
     let clusters = ClusterSummary {
         priors: model.priors.clone(),
@@ -337,6 +342,7 @@ fn fit(
     Ok(FittedParts {
         model,
         mirrored_training: aligned.mirrored_positions(),
+        laterality: aligned.laterality,
         aligned_training: aligned.vertices,
         // Members of cluster m are compared with every training shape on atlas m.
         normalised: memberships.smoothed,

@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::pca::Sampling;
-use crate::mesh::Mesh;
+use crate::mesh::{Laterality, Mesh};
 use crate::models::asmg::AsmgModel;
 use crate::models::asmg::registration::align;
 use crate::models::asmg::soft_clusters::{atlas_distance, weights_at};
@@ -78,7 +78,7 @@ impl MatlasModel {
         self.priors.iter().rposition(|p| *p > 0.0).unwrap_or(0)
     }
 
-    fn place(&self, mesh: &Mesh) -> Result<Placed, ModelError> {
+    fn place(&self, mesh: &Mesh, laterality: Option<Laterality>) -> Result<Placed, ModelError> {
         let first = &self.parts[0];
         let atlases: Vec<&[[f64; 3]]> = self
             .parts
@@ -88,6 +88,7 @@ impl MatlasModel {
         let (aligned, aligned_input) = align(
             &first.reference,
             mesh,
+            laterality,
             &first.alignment,
             first.params.max_vertices,
             &atlases,
@@ -111,8 +112,12 @@ impl MatlasModel {
     }
 
     /// The soft weights of an unseen mesh (as for the training shapes, eq. 5.13).
-    pub fn cluster_weights(&self, mesh: &Mesh) -> Result<Vec<f64>, ModelError> {
-        Ok(self.place(mesh)?.weights)
+    pub fn cluster_weights(
+        &self,
+        mesh: &Mesh,
+        laterality: Option<Laterality>,
+    ) -> Result<Vec<f64>, ModelError> {
+        Ok(self.place(mesh, laterality)?.weights)
     }
 }
 
@@ -183,8 +188,12 @@ impl ShapeModel for MatlasModel {
     }
 
     /// Through the generator of the cluster of largest weight.
-    fn reconstruct(&self, mesh: &Mesh) -> Result<Reconstruction, ModelError> {
-        let placed = self.place(mesh)?;
+    fn reconstruct(
+        &self,
+        mesh: &Mesh,
+        laterality: Option<Laterality>,
+    ) -> Result<Reconstruction, ModelError> {
+        let placed = self.place(mesh, laterality)?;
         let atlas = winning_cluster(&placed.weights);
         let normalised = placed.normalised.into_iter().nth(atlas).unwrap_or_default();
         Ok(Reconstruction {

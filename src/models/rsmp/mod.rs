@@ -22,9 +22,9 @@ use crate::geometry::cpd::{NonRigidParams, nonrigid_cpd};
 use crate::geometry::gpa::generalised_procrustes;
 use crate::geometry::pca::{PcaModel, PcaParams, Sampling};
 use crate::geometry::procrustes::weighted_procrustes;
-use crate::mesh::Mesh;
 use crate::mesh::adjacency::Adjacency;
 use crate::mesh::smooth::taubin;
+use crate::mesh::{Laterality, Mesh};
 
 mod coefficients;
 mod params;
@@ -182,7 +182,11 @@ impl ShapeModel for RsmpModel {
         })
     }
 
-    fn reconstruct(&self, mesh: &Mesh) -> Result<Reconstruction, ModelError> {
+    fn reconstruct(
+        &self,
+        mesh: &Mesh,
+        _laterality: Option<Laterality>,
+    ) -> Result<Reconstruction, ModelError> {
         let (normalised, aligned_input) = self.normalise(mesh)?;
         let b = self.pca.project(&self.to_pca_space(&normalised))?;
         let x = self.pca.reconstruct(&b)?;
@@ -380,6 +384,7 @@ fn fit(
         clusters: None,
         beta_choices: Vec::new(),
         mirrored_training: Vec::new(),
+        laterality: None,
     })
 }
 

@@ -12,6 +12,8 @@ fn fit_samples_and_reconstructs_phantoms() {
     let input = FitInput {
         training,
         holdout,
+        training_laterality: &[],
+        holdout_laterality: &[],
         template_indices: &[],
         seed: 1,
     };
@@ -66,7 +68,7 @@ fn fit_samples_and_reconstructs_phantoms() {
     // The refined correspondences keep a held-out heart's wall volume (rigid ones lost up
     // to 60% of it by matching template points to the nearer wall).
     for mesh in holdout {
-        let normalised = model.reconstruct(mesh).unwrap().normalised;
+        let normalised = model.reconstruct(mesh, None).unwrap().normalised;
         let shape = Mesh::new(normalised, model.template.faces.clone());
         let (kept, truth) = (
             crate::mesh::measures::volume_ml(&shape),
@@ -82,7 +84,7 @@ fn fit_samples_and_reconstructs_phantoms() {
     let guard = &outcome.model.training;
     let index = crate::eval::privacy::CorrespondedShapes::new(&guard.normalised_f64()[0]).unwrap();
     for (k, mesh) in training.iter().enumerate() {
-        let again = model.reconstruct(mesh).unwrap().mesh.vertices;
+        let again = model.reconstruct(mesh, None).unwrap().mesh.vertices;
         let nearest = index.nearest(&again).unwrap();
         assert_eq!(nearest.index, k);
         assert!(
@@ -158,7 +160,7 @@ fn meshes_above_the_vertex_budget_are_registered_simplified() {
     // A held-out mesh above the budget: its normalised shape keeps the wall volume, and
     // every one of its vertices comes back in the template frame for the distances.
     let mesh = &holdout[0];
-    let reconstruction = model.reconstruct(mesh).unwrap();
+    let reconstruction = model.reconstruct(mesh, None).unwrap();
     assert_eq!(reconstruction.aligned_input.len(), mesh.vertex_count());
     let shape = Mesh::new(reconstruction.normalised, model.template.faces.clone());
     let (kept, truth) = (
