@@ -43,24 +43,33 @@ impl LateralityFile {
         Ok(Self(sides))
     }
 
-    /// The side of each mesh file in `names` (`None` where the file gives none). Every name
-    /// in the file must be one of `names`, so that a misspelt one is not silently ignored.
-    pub fn sides_of(&self, names: &[String]) -> Result<Vec<Option<Laterality>>, String> {
-        let stem = |n: &str| n.rsplit_once('.').map_or(n, |(s, _)| s).to_owned();
-        if let Some(unknown) = self
+    /// Fails when the file names a mesh that is not among the mesh files `names`, so that a
+    /// misspelt name is not silently ignored.
+    pub fn check_names(&self, names: &[String]) -> Result<(), String> {
+        match self
             .0
             .keys()
-            .find(|k| !names.iter().any(|n| n == *k || stem(n) == **k))
+            .find(|k| !names.iter().any(|n| n == *k || stem(n) == k.as_str()))
         {
-            return Err(format!(
+            Some(unknown) => Err(format!(
                 "the laterality file names {unknown}, which is not a mesh file here"
-            ));
+            )),
+            None => Ok(()),
         }
-        Ok(names
-            .iter()
-            .map(|n| self.0.get(n).or_else(|| self.0.get(&stem(n))).copied())
-            .collect())
     }
+
+    /// The side of each mesh file in `names` (`None` where the file gives none).
+    pub fn sides_of(&self, names: &[String]) -> Vec<Option<Laterality>> {
+        names
+            .iter()
+            .map(|n| self.0.get(n).or_else(|| self.0.get(stem(n))).copied())
+            .collect()
+    }
+}
+
+/// A file name without its extension.
+fn stem(name: &str) -> &str {
+    name.rsplit_once('.').map_or(name, |(s, _)| s)
 }
 
 #[cfg(test)]
@@ -75,10 +84,11 @@ mod tests {
         .unwrap();
         let names = ["k_01.obj", "k_02.obj", "k_03.obj"].map(String::from);
         assert_eq!(
-            file.sides_of(&names).unwrap(),
+            file.sides_of(&names),
             [Some(Laterality::Left), Some(Laterality::Right), None]
         );
-        let err = file.sides_of(&names[..1]).unwrap_err();
+        assert!(file.check_names(&names).is_ok());
+        let err = file.check_names(&names[..1]).unwrap_err();
         assert!(err.contains("k_02"), "{err}");
     }
 

@@ -73,7 +73,8 @@ pub struct EvaluateArgs {
     #[arg(long)]
     pub json: PathBuf,
     /// Sides of paired-organ meshes: lines `mesh,left` or `mesh,right` (file name with or
-    /// without extension). Models with `mirror` take them as given.
+    /// without extension; names of other meshes, e.g. the training ones, are skipped). Models
+    /// with `mirror` take them as given.
     #[arg(long)]
     pub laterality: Option<PathBuf>,
 }
@@ -114,9 +115,12 @@ fn pick(meshes: &[NamedMesh], names: &[String]) -> Vec<Mesh> {
         .collect()
 }
 
-/// The sides a `--laterality` file gives (none without one).
-fn laterality_of(path: Option<&Path>) -> Result<LateralityFile, String> {
-    path.map_or_else(|| Ok(LateralityFile::default()), LateralityFile::read)
+/// The sides a `--laterality` file gives (none without one), checked against the mesh
+/// files `names`.
+fn laterality_of(path: Option<&Path>, names: &[String]) -> Result<LateralityFile, String> {
+    let file = path.map_or_else(|| Ok(LateralityFile::default()), LateralityFile::read)?;
+    file.check_names(names)?;
+    Ok(file)
 }
 
 /// Runs `cohortforge fit`.
@@ -150,12 +154,12 @@ pub fn fit(args: &FitArgs) -> CliResult {
     );
     let started = Instant::now();
     let mut progress = StderrProgress::new(args.model.as_str());
-    let sides = laterality_of(args.laterality.as_deref())?;
+    let sides = laterality_of(args.laterality.as_deref(), &names)?;
     let input = FitInput {
         training: &training,
         holdout: &holdout,
-        training_laterality: &sides.sides_of(&training_names)?,
-        holdout_laterality: &sides.sides_of(&holdout_names)?,
+        training_laterality: &sides.sides_of(&training_names),
+        holdout_laterality: &sides.sides_of(&holdout_names),
         template_indices: &template_indices,
         seed: args.seed,
     };
@@ -398,7 +402,11 @@ pub fn evaluate_model(args: &EvaluateArgs) -> CliResult {
     let faces: Vec<&[[u32; 3]]> = file.training_faces.iter().map(Vec::as_slice).collect();
     let test_meshes: Vec<Mesh> = test.iter().map(|m| m.mesh.clone()).collect();
     let test_names: Vec<String> = test.iter().map(|m| m.name.clone()).collect();
-    let test_sides = laterality_of(args.laterality.as_deref())?.sides_of(&test_names)?;
+    // The file may list the training meshes too: names not among the test meshes are skipped.
+    let test_sides = match &args.laterality {
+        Some(path) => LateralityFile::read(path)?.sides_of(&test_names),
+        None => Vec::new(),
+    };
 
     let step = Instant::now();
     let mut stages = Stages::new(&[("evaluation", 1.0)]);

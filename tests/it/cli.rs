@@ -160,6 +160,43 @@ fn a_file_that_is_not_a_model_is_a_clear_error() {
 }
 
 #[test]
+fn a_laterality_file_naming_no_mesh_file_is_refused_before_fitting() {
+    let dir = tempfile::tempdir().unwrap();
+    let train = dir.path().join("train");
+    cohortforge(&[
+        "phantoms",
+        "--family",
+        "lv",
+        "--count",
+        "4",
+        "--seed",
+        "1",
+        "--out",
+        path(&train),
+    ]);
+    let sides = dir.path().join("sides.csv");
+    std::fs::write(&sides, "mesh,laterality\nlv_000,left\nlv_0001.obj,right\n").unwrap();
+    let output = Command::new(env!("CARGO_BIN_EXE_cohortforge"))
+        .args([
+            "fit",
+            "--train",
+            path(&train),
+            "--model",
+            "rsmp",
+            "--laterality",
+        ])
+        .args([path(&sides), "--out", path(&dir.path().join("m.cfmodel"))])
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("the laterality file names lv_0001.obj, which is not a mesh file here"),
+        "{stderr}"
+    );
+}
+
+#[test]
 fn a_database_that_cannot_be_opened_is_refused_with_what_to_give() {
     let run = |database: &str| {
         let output = Command::new(env!("CARGO_BIN_EXE_cohortforge"))

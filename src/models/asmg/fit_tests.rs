@@ -354,10 +354,13 @@ fn chiral_blob(k: f64) -> Mesh {
     Mesh::new(vertices, sphere.faces)
 }
 
-#[test]
-fn with_mirror_the_mirror_images_among_the_training_meshes_take_the_reference_side() {
-    let given_mirrored = [false, true, false, true, false];
-    let meshes: Vec<Mesh> = given_mirrored
+/// Which of [`chiral_population`]'s blobs are mirror images.
+const GIVEN_MIRRORED: [bool; 5] = [false, true, false, true, false];
+
+/// Five chiral blobs, those of [`GIVEN_MIRRORED`] as mirror images; parameters with
+/// `mirror`; the alignment stage entered.
+fn chiral_population() -> (Vec<Mesh>, AsmgParams, Stages) {
+    let meshes = GIVEN_MIRRORED
         .iter()
         .enumerate()
         .map(|(k, m)| {
@@ -371,6 +374,13 @@ fn with_mirror_the_mirror_images_among_the_training_meshes_take_the_reference_si
     };
     let mut stages = Stages::new(&[("alignment", 1.0)]);
     stages.enter("alignment");
+    (meshes, params, stages)
+}
+
+#[test]
+fn with_mirror_the_mirror_images_among_the_training_meshes_take_the_reference_side() {
+    let (meshes, params, stages) = chiral_population();
+    let given_mirrored = GIVEN_MIRRORED;
     let aligned = align_training(&meshes, &[], &params, 0, &stages, &mut Silent).unwrap();
     assert_eq!(aligned.mirrored, given_mirrored.to_vec());
     assert_eq!(aligned.mirrored_positions(), vec![1, 3]);
@@ -395,20 +405,7 @@ fn with_mirror_the_mirror_images_among_the_training_meshes_take_the_reference_si
 fn sides_the_user_gave_override_the_shapes_and_name_the_models_side() {
     use crate::mesh::Laterality::{Left, Right};
     use crate::models::asmg::registration::{align, align_sides};
-    let meshes: Vec<Mesh> = [false, true, false, true, false]
-        .iter()
-        .enumerate()
-        .map(|(k, m)| {
-            let blob = chiral_blob(k as f64);
-            if *m { mirror_image(&blob) } else { blob }
-        })
-        .collect();
-    let params = AsmgParams {
-        mirror: true,
-        ..AsmgParams::default()
-    };
-    let mut stages = Stages::new(&[("alignment", 1.0)]);
-    stages.enter("alignment");
+    let (meshes, params, stages) = chiral_population();
     // Mesh 2 has the reference's form but is said to be a left one, the reference a right
     // one: it is mirrored all the same; mesh 3, without a side, joins the majority.
     let given = [Some(Right), Some(Left), Some(Left), None, None];
