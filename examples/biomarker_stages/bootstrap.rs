@@ -29,12 +29,13 @@ pub fn standard_coefficients(rsmp: &RsmpModel) -> Option<Vec<Vec<f64>>> {
 }
 
 /// `draws` draws with kernel width `h` (share of each mode's sd): a random training shape's
-/// standard coefficients (with `modewise`, each mode's from its own random training shape)
-/// shrunk by `√(1 − h²)`, plus `h` times a standard normal value.
+/// standard coefficients shrunk by `√(1 − h²)`, plus `h` times a standard normal value. The
+/// first `independent` modes each take their own random training shape, the rest one
+/// shape together (0: every mode from one shape, the bootstrap; all: mode-wise).
 pub fn bootstrap_draws(
     rsmp: &RsmpModel,
     coefficients: &[Vec<f64>],
-    (h, modewise): (f64, bool),
+    (h, independent): (f64, usize),
     draws: usize,
     seed: u64,
 ) -> Vec<Mesh> {
@@ -46,7 +47,7 @@ pub fn bootstrap_draws(
             let mut parent = rng.random_range(0..coefficients.len());
             (0..modes)
                 .map(|k| {
-                    if modewise {
+                    if k > 0 && k <= independent {
                         parent = rng.random_range(0..coefficients.len());
                     }
                     shrink * coefficients[parent][k] + h * rng.sample::<f64, _>(StandardNormal)

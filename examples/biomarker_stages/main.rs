@@ -18,7 +18,9 @@
 //! without sphericity). For `rsmp`, `BANDWIDTHS=0,0.3,0.5` adds draws from a smoothed
 //! bootstrap of the training shapes' coefficients and draws whose every mode takes a random
 //! training shape's coefficient, each with that kernel width, and every rsmp stage prints its
-//! share of near copies. Last, for each stage, how far the two ends of the long axis lie
+//! share of near copies; `TRAILING=0.6,0.8` draws each mode up to that share of the variance
+//! from its own random training shape and the remaining modes together from one. Last, for
+//! each stage, how far the two ends of the long axis lie
 //! from the centroid and how far each end's farthest vertex stands out of the next 20.
 
 use cohortforge::cli::mesh_dir::read_mesh_dir;
@@ -155,18 +157,39 @@ fn main() {
         let bandwidths = env_list::<f64>("BANDWIDTHS");
         match bootstrap::standard_coefficients(rsmp) {
             Some(coefficients) => {
+                let modes = rsmp.pca.n_modes();
                 for h in bandwidths {
-                    for (label, modewise) in [("bootstrap", false), ("modewise", true)] {
+                    for (label, independent) in [("bootstrap", 0), ("modewise", modes)] {
                         let d = bootstrap::bootstrap_draws(
                             rsmp,
                             &coefficients,
-                            (h, modewise),
+                            (h, independent),
                             draws,
                             seed,
                         );
                         reference.print(&format!("{label} h {h}"), &d, Some(&mean_axis));
                         println!("  near copies {:.1}%", near_copies.percent(&d));
                     }
+                }
+                // Modes beyond a share of the variance taken together from one patient.
+                for share in env_list::<f64>("TRAILING") {
+                    let independent = rsmp
+                        .pca
+                        .cumulative_explained
+                        .iter()
+                        .position(|c| *c >= share)
+                        .map_or(modes, |k| k + 1);
+                    let d = bootstrap::bootstrap_draws(
+                        rsmp,
+                        &coefficients,
+                        (0.0, independent),
+                        draws,
+                        seed,
+                    );
+                    let label = format!("modes {independent} of {modes} apart, rest joint");
+                    reference.print(&label, &d, Some(&mean_axis));
+                    ends::print_ends(&label, &d, Some(&mean_axis));
+                    println!("  near copies {:.1}%", near_copies.percent(&d));
                 }
             }
             None if !bandwidths.is_empty() => {

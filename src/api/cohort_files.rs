@@ -13,7 +13,7 @@ use super::error::{ApiError, Problem};
 use super::extract::{Path, Query};
 use super::meshes::{MeshFile, mesh_file_response};
 use super::models::FormatQuery;
-use crate::jobs::cohort::{CohortRequest, load_source, member_shapes};
+use crate::jobs::cohort::{CohortRequest, load_source, member_shapes, model_side};
 use crate::mesh;
 use crate::report::exports::{member_file_name, members_csv};
 use crate::store::cohorts::{CohortRecord, MemberGeometry};
@@ -84,10 +84,16 @@ async fn shapes(
     };
     let request: CohortRequest = serde_json::from_value(cohort.request.clone())
         .map_err(|e| ApiError::internal(format!("cohort {} request: {e}", cohort.id)))?;
-    tokio::task::spawn_blocking(move || member_shapes(source.as_ref(), &request, geometries))
-        .await
-        .map_err(|e| ApiError::internal(e.to_string()))?
-        .map_err(|e| ApiError::from_run(&model_id, e))
+    let model_side = match request.laterality {
+        Some(_) => model_side(&state.store.model(&model_id).await?.summary),
+        None => None,
+    };
+    tokio::task::spawn_blocking(move || {
+        member_shapes(source.as_ref(), &request, model_side, geometries)
+    })
+    .await
+    .map_err(|e| ApiError::internal(e.to_string()))?
+    .map_err(|e| ApiError::from_run(&model_id, e))
 }
 
 /// The line kept inside member files (VTK's title line): where the member came from.
@@ -97,8 +103,13 @@ fn provenance(cohort: &CohortRecord, index: i64) -> String {
         .get("seed")
         .and_then(serde_json::Value::as_u64)
         .unwrap_or(0);
+    let side = cohort
+        .request
+        .get("laterality")
+        .and_then(serde_json::Value::as_str)
+        .map_or(String::new(), |s| format!(" laterality={s}"));
     format!(
-        "cohortforge member model={} cohort={} seed={seed} index={index}, coordinates in mm",
+        "cohortforge member model={} cohort={} seed={seed} index={index}{side}, coordinates in mm",
         cohort.model_id, cohort.id
     )
 }

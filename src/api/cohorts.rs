@@ -14,7 +14,7 @@ use super::extract::{Json, PageQuery, Paginated, Path, Query};
 use crate::eval::Biomarkers;
 use crate::geometry::pca::Sampling;
 use crate::jobs::cohort::{
-    CohortRequest, MAX_COHORT_SIZE, MemberSummary, draw_cohort, load_source,
+    CohortRequest, MAX_COHORT_SIZE, MemberSummary, draw_cohort, load_source, model_side,
 };
 use crate::models::ModelError;
 use crate::models::conditional::Target;
@@ -162,6 +162,24 @@ fn check_request(body: &CohortRequest) -> Result<(), ApiError> {
     Ok(())
 }
 
+/// A cohort may ask for a side only of a model that knows the side of its shapes.
+async fn check_side_known(state: &AppState, model_id: &str) -> Result<(), ApiError> {
+    let record = state.store.model(model_id).await?;
+    match model_side(&record.summary) {
+        Some(_) => Ok(()),
+        None => Err(ApiError::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "cohort.laterality_unknown",
+            format!(
+                "model {model_id} does not know which side its shapes are, so it cannot serve \
+                 members of a given side: leave laterality out, or fit a model with \
+                 \"mirror\": true on meshes whose laterality is given"
+            ),
+        )
+        .with("field", "laterality")),
+    }
+}
+
 /// 422 for a cohort the model cannot draw; an unreachable target names its field and the
 /// range the model reaches.
 fn cohort_failed(e: ModelError) -> ApiError {
@@ -217,7 +235,7 @@ fn location(id: &str) -> HeaderMap {
         (status = 404, description = "No such model (`model.not_found`)", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "The model was stored in a format this release does not read (`model.unsupported_version`)", body = Problem, content_type = "application/problem+json"),
         (status = 415, description = "The body is not sent as application/json (`request.unsupported_media_type`)", body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "Invalid field (`request.invalid_field`), too few accepted draws (`cohort.acceptance_unreachable`), or a target the model cannot reach (`cohort.target_unreachable`)", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Invalid field (`request.invalid_field`), too few accepted draws (`cohort.acceptance_unreachable`), a target the model cannot reach (`cohort.target_unreachable`), or a side asked of a model that does not know its own (`cohort.laterality_unknown`)", body = Problem, content_type = "application/problem+json"),
     )
 )]
 async fn create_cohort(
@@ -227,6 +245,9 @@ async fn create_cohort(
     Json(body): Json<CohortRequest>,
 ) -> Result<(StatusCode, HeaderMap, Json<CohortView>), ApiError> {
     check_request(&body)?;
+    if body.laterality.is_some() {
+        check_side_known(&state, &model_id).await?;
+    }
     let request = serde_json::to_value(&body).map_err(|e| ApiError::internal(e.to_string()))?;
     let asked_async = prefers_async(&headers);
     if asked_async || body.size > state.sync_cohort_max {

@@ -11,7 +11,8 @@ use super::run::RunError;
 use crate::eval::acceptance::Flags;
 use crate::eval::metrics::parallel_map;
 use crate::geometry::pca::Sampling;
-use crate::mesh::{Mesh, codec};
+use crate::mesh::laterality::mirror_image;
+use crate::mesh::{Laterality, Mesh, codec};
 use crate::models::cohort::{
     CohortSpec, Criterion, Member, TrainingIndex, draw_shape, sample_cohort_given,
 };
@@ -71,6 +72,12 @@ pub struct CohortRequest {
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     #[schema(example = json!({"volume_ml": {"min": 120, "max": 160}}))]
     pub targets: BTreeMap<String, Target>,
+    /// The side of a paired organ every member should be, `left` or `right`: the members of
+    /// a model of the other side (its `laterality`) are served as their mirror images
+    /// (biomarkers unchanged). A model that does not know its side refuses it (422
+    /// `cohort.laterality_unknown`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub laterality: Option<Laterality>,
 }
 
 impl CohortRequest {
@@ -86,6 +93,19 @@ impl CohortRequest {
             max_draws: self.size.saturating_mul(DRAWS_PER_MEMBER),
         }
     }
+
+    /// Whether the members are served as their mirror images: the request asks for a side
+    /// and the model's shapes (`model_side`, from its summary) are of the other.
+    pub fn mirrors_members(&self, model_side: Option<Laterality>) -> bool {
+        matches!((self.laterality, model_side), (Some(asked), Some(side)) if asked != side)
+    }
+}
+
+/// The side of a model's shapes, from its stored summary (`None`: unknown).
+pub fn model_side(summary: &serde_json::Value) -> Option<Laterality> {
+    summary
+        .get("laterality")
+        .and_then(|v| serde_json::from_value(v.clone()).ok())
 }
 
 /// One member of a cohort: where it was drawn, its biomarkers, and how it compares with the
@@ -190,8 +210,23 @@ pub fn draw_cohort(
 
 /// The shapes of a cohort's members: stored ones as they are, the others drawn again from
 /// `source` (the cohort's model) by their draw numbers, each checked against the checksum
-/// taken when it was first drawn. Blocking (call it off the async runtime).
+/// taken when it was first drawn; all as mirror images when the request asks for the other
+/// side than the model's (`model_side`). Blocking (call it off the async runtime).
 pub fn member_shapes(
+    source: Option<&CohortSource>,
+    request: &CohortRequest,
+    model_side: Option<Laterality>,
+    geometries: Vec<MemberGeometry>,
+) -> Result<Vec<Mesh>, RunError> {
+    let shapes = drawn_shapes(source, request, geometries)?;
+    Ok(match request.mirrors_members(model_side) {
+        true => shapes.iter().map(mirror_image).collect(),
+        false => shapes,
+    })
+}
+
+/// [`member_shapes`] as drawn.
+fn drawn_shapes(
     source: Option<&CohortSource>,
     request: &CohortRequest,
     geometries: Vec<MemberGeometry>,

@@ -5,6 +5,8 @@
 use std::fmt;
 use std::str::FromStr;
 
+use super::Mesh;
+
 /// The patient's side of a paired organ.
 #[derive(
     Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize, utoipa::ToSchema,
@@ -68,9 +70,38 @@ impl FromStr for Laterality {
     }
 }
 
+/// `mesh` reflected through the plane `x = 0` (mm), its triangles rewound so that they still
+/// face outwards: the organ of the other side. Volume, area and extents are unchanged.
+pub fn mirror_image(mesh: &Mesh) -> Mesh {
+    Mesh::new(
+        mesh.vertices.iter().map(|p| [-p[0], p[1], p[2]]).collect(),
+        mesh.faces.iter().map(|&[a, b, c]| [a, c, b]).collect(),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::measures::volume_ml;
+
+    #[test]
+    fn a_mirror_image_keeps_its_volume_and_mirrored_twice_is_the_mesh() {
+        // A tetrahedron with one corner off the plane x = 0.
+        let mesh = Mesh::new(
+            vec![
+                [0.0, 0.0, 0.0],
+                [10.0, 0.0, 0.0],
+                [0.0, 10.0, 0.0],
+                [3.0, 2.0, 10.0],
+            ],
+            vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
+        );
+        let mirrored = mirror_image(&mesh);
+        assert_eq!(mirrored.vertices[1], [-10.0, 0.0, 0.0]);
+        assert!(volume_ml(&mesh) > 0.0);
+        assert!((volume_ml(&mirrored) - volume_ml(&mesh)).abs() < 1e-12);
+        assert_eq!(mirror_image(&mirrored), mesh);
+    }
 
     #[test]
     fn names_parse_back_and_others_are_refused() {

@@ -147,6 +147,16 @@ async fn tiny_phantoms_to_asmg_model_to_cohort() {
     crate::reports::check_plot_errors(&s, &page, "loss_beta_vae", no_pca).await;
 
     let url = s.url(&format!("/v1/models/{model_id}/cohorts"));
+    // Fitted without sides, the model cannot serve members of a given side.
+    let sided = json!({"size": 6, "seed": 3, "laterality": "left"});
+    let refused = s.client.post(&url).json(&sided).send().await.unwrap();
+    let problem = expect_problem(
+        refused,
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "cohort.laterality_unknown",
+    )
+    .await;
+    assert_eq!(problem["field"], "laterality");
     let request = json!({"size": 6, "seed": 3});
     let cohort = expect_json(
         s.client.post(&url).json(&request).send().await.unwrap(),
@@ -302,4 +312,44 @@ async fn with_mirror_the_given_sides_decide_which_meshes_are_mirrored() {
     mirrored.sort_unstable();
     assert!(!expected.is_empty());
     assert_eq!(mirrored, expected);
+
+    // A cohort of the other side is the same cohort mirrored: x negated, biomarkers equal.
+    let url = s.url(&format!(
+        "/v1/models/{}/cohorts",
+        model["id"].as_str().unwrap()
+    ));
+    let other_side = if side == "left" { "right" } else { "left" };
+    let mut members = Vec::new();
+    for asked in [side, other_side] {
+        let request = json!({"size": 2, "seed": 4, "laterality": asked});
+        let cohort = expect_json(
+            s.client.post(&url).json(&request).send().await.unwrap(),
+            StatusCode::CREATED,
+        )
+        .await;
+        let id = cohort["id"].as_str().unwrap();
+        let file = s.url(&format!("/v1/cohorts/{id}/members/1/file?format=obj"));
+        let bytes = s
+            .client
+            .get(file)
+            .send()
+            .await
+            .unwrap()
+            .bytes()
+            .await
+            .unwrap();
+        let mesh = io::read(&bytes, Format::Obj, &Default::default()).unwrap();
+        members.push((cohort["members"][1]["biomarkers"].clone(), mesh));
+    }
+    let ((as_drawn_biomarkers, as_drawn), (mirrored_biomarkers, mirrored)) =
+        (&members[0], &members[1]);
+    assert_eq!(as_drawn_biomarkers, mirrored_biomarkers);
+    assert_eq!(as_drawn.vertex_count(), mirrored.vertex_count());
+    for (a, b) in as_drawn.vertices.iter().zip(&mirrored.vertices) {
+        assert!(
+            (a[0] + b[0]).abs() < 1e-4 && (a[1] - b[1]).abs() < 1e-4,
+            "{a:?} {b:?}"
+        );
+    }
+    assert!(as_drawn.vertices.iter().any(|p| p[0].abs() > 1.0));
 }
