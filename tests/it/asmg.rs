@@ -167,16 +167,10 @@ async fn tiny_phantoms_to_asmg_model_to_cohort() {
     let cohort_id = cohort["id"].as_str().unwrap();
     for index in [0, 5] {
         let bytes = s
-            .client
-            .get(s.url(&format!(
+            .get_bytes(s.url(&format!(
                 "/v1/cohorts/{cohort_id}/members/{index}/file?format=obj"
             )))
-            .send()
-            .await
-            .unwrap()
-            .bytes()
-            .await
-            .unwrap();
+            .await;
         let member = io::read(&bytes, Format::Obj, &Default::default()).unwrap();
         assert_eq!(member.vertex_count(), atlas_vertices);
         let parsed = ingest(&bytes, Format::Obj, &IngestOptions::default()).unwrap();
@@ -329,15 +323,7 @@ async fn with_mirror_the_given_sides_decide_which_meshes_are_mirrored() {
         .await;
         let id = cohort["id"].as_str().unwrap();
         let file = s.url(&format!("/v1/cohorts/{id}/members/1/file?format=obj"));
-        let bytes = s
-            .client
-            .get(file)
-            .send()
-            .await
-            .unwrap()
-            .bytes()
-            .await
-            .unwrap();
+        let bytes = s.get_bytes(file).await;
         let mesh = io::read(&bytes, Format::Obj, &Default::default()).unwrap();
         members.push((cohort["members"][1]["biomarkers"].clone(), mesh));
     }

@@ -278,15 +278,7 @@ async fn phantoms_to_model_to_reproducible_cohort() {
             cohort["id"].as_str().unwrap()
         ))
     };
-    let bytes = s
-        .client
-        .get(member(&cohort))
-        .send()
-        .await
-        .unwrap()
-        .bytes()
-        .await
-        .unwrap();
+    let bytes = s.get_bytes(member(&cohort)).await;
     let parsed = ingest(&bytes, Format::Obj, &IngestOptions::default()).unwrap();
     assert!(parsed.summary.watertight);
     assert!(parsed.summary.volume_ml > 0.0);
@@ -297,15 +289,7 @@ async fn phantoms_to_model_to_reproducible_cohort() {
     )
     .await;
     assert_ne!(again["id"], cohort["id"]);
-    let bytes_again = s
-        .client
-        .get(member(&again))
-        .send()
-        .await
-        .unwrap()
-        .bytes()
-        .await
-        .unwrap();
+    let bytes_again = s.get_bytes(member(&again)).await;
     assert_eq!(
         bytes, bytes_again,
         "the same request must give the same member file"
@@ -316,24 +300,8 @@ async fn phantoms_to_model_to_reproducible_cohort() {
             c["id"].as_str().unwrap()
         ))
     };
-    let a = s
-        .client
-        .get(archive(&cohort))
-        .send()
-        .await
-        .unwrap()
-        .bytes()
-        .await
-        .unwrap();
-    let b = s
-        .client
-        .get(archive(&again))
-        .send()
-        .await
-        .unwrap()
-        .bytes()
-        .await
-        .unwrap();
+    let a = s.get_bytes(archive(&cohort)).await;
+    let b = s.get_bytes(archive(&again)).await;
     assert_eq!(a, b, "archives of identical cohorts must be identical");
     assert!(a.len() > 1000 && &a[..2] == b"PK");
 }

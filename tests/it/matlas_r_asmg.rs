@@ -62,14 +62,8 @@ async fn mixed_phantoms_to_two_atlases_and_a_cohort_of_both() {
     // The atlases download with their own vertex counts.
     for (m, atlas) in atlases.iter().enumerate() {
         let bytes = s
-            .client
-            .get(s.url(&format!("/v1/models/{model_id}/atlases/{m}?format=obj")))
-            .send()
-            .await
-            .unwrap()
-            .bytes()
-            .await
-            .unwrap();
+            .get_bytes(s.url(&format!("/v1/models/{model_id}/atlases/{m}?format=obj")))
+            .await;
         let mesh = io::read(&bytes, Format::Obj, &Default::default()).unwrap();
         assert_eq!(
             mesh.vertex_count() as u64,
@@ -98,16 +92,10 @@ async fn mixed_phantoms_to_two_atlases_and_a_cohort_of_both() {
     let mut counts = Vec::new();
     for index in [first, second] {
         let bytes = s
-            .client
-            .get(s.url(&format!(
+            .get_bytes(s.url(&format!(
                 "/v1/cohorts/{cohort_id}/members/{index}/file?format=obj"
             )))
-            .send()
-            .await
-            .unwrap()
-            .bytes()
-            .await
-            .unwrap();
+            .await;
         let parsed = ingest(&bytes, Format::Obj, &IngestOptions::default()).unwrap();
         assert!(parsed.summary.watertight, "member {index} is not closed");
         let cluster = members[index]["cluster"].as_u64().unwrap() as usize;

@@ -122,6 +122,13 @@ impl TestServer {
     }
 
     /// Absolute URL of a path.
+    /// The body of a successful GET of `url` (a full URL, as [`Self::url`] makes).
+    pub async fn get_bytes(&self, url: String) -> bytes::Bytes {
+        let response = self.client.get(url).send().await.expect("request");
+        assert!(response.status().is_success(), "{}", response.status());
+        response.bytes().await.expect("body")
+    }
+
     pub fn url(&self, path: &str) -> String {
         format!("{}{}", self.base, path)
     }
