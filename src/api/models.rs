@@ -465,6 +465,8 @@ mod tests {
             holdout_mesh_ids: vec!["d".into()],
             training_sha256: Vec::new(),
             holdout_sha256: Vec::new(),
+            training_laterality: Vec::new(),
+            holdout_laterality: Vec::new(),
         };
         let summary = serde_json::json!({"mirrored_training": [0, 2]});
         assert_eq!(mirrored_of(&summary, &provenance), ["a", "c"]);

@@ -38,8 +38,6 @@ pub enum RunError {
 struct Split {
     training: Vec<Mesh>,
     holdout: Vec<Mesh>,
-    training_laterality: Vec<Option<Laterality>>,
-    holdout_laterality: Vec<Option<Laterality>>,
     provenance: Provenance,
     template_indices: Vec<usize>,
 }
@@ -87,11 +85,11 @@ fn load_split(
     Ok(Split {
         training: load(&training_ids)?,
         holdout: load(&holdout_ids)?,
-        training_laterality: sides(&training_ids),
-        holdout_laterality: sides(&holdout_ids),
         provenance: Provenance {
             training_sha256: sha(&training_ids),
             holdout_sha256: sha(&holdout_ids),
+            training_laterality: sides(&training_ids),
+            holdout_laterality: sides(&holdout_ids),
             training_mesh_ids: training_ids,
             holdout_mesh_ids: holdout_ids,
         },
@@ -137,8 +135,8 @@ fn run_fit_job(
     let input = FitInput {
         training: &split.training,
         holdout: &split.holdout,
-        training_laterality: &split.training_laterality,
-        holdout_laterality: &split.holdout_laterality,
+        training_laterality: &split.provenance.training_laterality,
+        holdout_laterality: &split.provenance.holdout_laterality,
         template_indices: &split.template_indices,
         seed: job.seed,
     };

@@ -125,6 +125,8 @@ mod tests {
                 holdout_mesh_ids: vec![],
                 training_sha256: vec![],
                 holdout_sha256: vec![],
+                training_laterality: vec![],
+                holdout_laterality: vec![],
             },
             summary: serde_json::json!({}),
             reference: serde_json::json!({"volume_ml": [1.0]}),

@@ -8,6 +8,7 @@ use utoipa::ToSchema;
 
 use super::artefacts::Placed;
 use super::{Page, Store, StoreError, new_id, now};
+use crate::mesh::Laterality;
 
 /// Where a model's training data came from.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
@@ -20,6 +21,17 @@ pub struct Provenance {
     pub training_sha256: Vec<String>,
     /// SHA-256 of each held-out mesh's geometry.
     pub holdout_sha256: Vec<String>,
+    /// The side of each training mesh when the fit read it (`null` where none was given), in
+    /// `training_mesh_ids` order; absent when none was given.
+    #[serde(default, skip_serializing_if = "no_side")]
+    pub training_laterality: Vec<Option<Laterality>>,
+    /// The side of each held-out mesh when the fit read it; absent when none was given.
+    #[serde(default, skip_serializing_if = "no_side")]
+    pub holdout_laterality: Vec<Option<Laterality>>,
+}
+
+fn no_side(sides: &[Option<Laterality>]) -> bool {
+    sides.iter().all(Option::is_none)
 }
 
 /// A model to store when its job succeeds.

@@ -293,6 +293,18 @@ async fn with_mirror_the_given_sides_decide_which_meshes_are_mirrored() {
         .iter()
         .map(|v| v.as_str().unwrap())
         .collect();
+    // The provenance keeps the side each training mesh was fitted with.
+    let sides = model["provenance"]["training_laterality"]
+        .as_array()
+        .unwrap();
+    for (id, given) in training.iter().zip(sides) {
+        let uploaded = if left.iter().any(|l| l == id) {
+            "left"
+        } else {
+            "right"
+        };
+        assert_eq!(given, uploaded);
+    }
     let mut expected: Vec<&str> = training
         .iter()
         .copied()
