@@ -12,6 +12,8 @@ use super::AppState;
 use super::error::{ApiError, Problem};
 use super::extract::Path;
 use super::renders::{members_picture, model_picture};
+use crate::jobs::cohort::{CohortRequest, model_side};
+use crate::mesh::Laterality;
 use crate::models::ModelSummary;
 use crate::models::cohort::CohortReport;
 use crate::models::reference::ReferencePopulation;
@@ -136,6 +138,7 @@ pub(super) struct CohortData {
     report: CohortReport,
     member_values: BTreeMap<String, Vec<f64>>,
     reference: ReferencePopulation,
+    laterality: Option<(Laterality, bool)>,
 }
 
 impl CohortData {
@@ -146,7 +149,16 @@ impl CohortData {
             "reference",
             state.store.model_reference(&cohort.model_id).await?,
         )?;
+        let request: CohortRequest = stored("request", cohort.request.clone())?;
+        let laterality = match request.laterality {
+            Some(side) => {
+                let model = state.store.model(&cohort.model_id).await?;
+                Some((side, request.mirrors_members(model_side(&model.summary))))
+            }
+            None => None,
+        };
         Ok(Self {
+            laterality,
             report: stored("report", cohort.report)?,
             member_values: member_values(&cohort.members),
             id: cohort.id,
@@ -164,6 +176,7 @@ impl CohortData {
             member_values: &self.member_values,
             reference: &self.reference,
             pictures: &[],
+            laterality: self.laterality,
         }
     }
 }

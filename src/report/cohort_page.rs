@@ -9,6 +9,7 @@ use super::plot::figure;
 use super::spread_table::{SpreadRow, spread_table};
 use super::{Picture, escape, mean_sd, page, pictures_section};
 use crate::eval::acceptance::Rates;
+use crate::mesh::Laterality;
 use crate::models::clusters::ClusterReport;
 use crate::models::cohort::CohortReport;
 use crate::models::conditional::Target;
@@ -28,6 +29,9 @@ pub struct CohortPage<'a> {
     pub reference: &'a ReferencePopulation,
     /// Rendered members.
     pub pictures: &'a [Picture],
+    /// The side of a paired organ the request asked for, and whether the members are served
+    /// as mirror images of the model's shapes to be of it.
+    pub laterality: Option<(Laterality, bool)>,
 }
 
 /// The page as HTML; one plot per biomarker of the report (see [`super::cohort_plot`]).
@@ -41,6 +45,16 @@ pub fn cohort_page(c: &CohortPage<'_>) -> String {
         escape(c.model_id),
         c.report.draws
     );
+    if let Some((side, mirrored)) = c.laterality {
+        let how = match mirrored {
+            true => format!(
+                ", served as mirror images of the model's {} shapes",
+                side.opposite()
+            ),
+            false => ", the side of the model's shapes".to_owned(),
+        };
+        let _ = write!(body, "<p>Every member is a {side} organ{how}.</p>");
+    }
     if let Some(note) = &c.report.population_note {
         let _ = write!(
             body,

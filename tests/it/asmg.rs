@@ -338,6 +338,18 @@ async fn with_mirror_the_given_sides_decide_which_meshes_are_mirrored() {
         let bytes = s.get_bytes(file).await;
         let mesh = io::read(&bytes, Format::Obj, &Default::default()).unwrap();
         members.push((cohort["members"][1]["biomarkers"].clone(), mesh));
+        // The report page says which side the members are and whether they are mirrored.
+        let page = s
+            .get_bytes(s.url(&format!("/v1/cohorts/{id}/report.html")))
+            .await;
+        let page = String::from_utf8_lossy(&page);
+        let expected = match asked == side {
+            true => format!("Every member is a {side} organ, the side of the model's shapes."),
+            false => format!(
+                "Every member is a {asked} organ, served as mirror images of the model's {side} shapes."
+            ),
+        };
+        assert!(page.contains(&expected), "{expected}");
     }
     let ((as_drawn_biomarkers, as_drawn), (mirrored_biomarkers, mirrored)) =
         (&members[0], &members[1]);
