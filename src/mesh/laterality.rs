@@ -70,11 +70,16 @@ impl FromStr for Laterality {
     }
 }
 
+/// The mirror image of a point (mm) in the plane `x = 0`.
+pub fn mirror_point(p: [f64; 3]) -> [f64; 3] {
+    [-p[0], p[1], p[2]]
+}
+
 /// `mesh` reflected through the plane `x = 0` (mm), its triangles rewound so that they still
 /// face outwards: the organ of the other side. Volume, area and extents are unchanged.
 pub fn mirror_image(mesh: &Mesh) -> Mesh {
     Mesh::new(
-        mesh.vertices.iter().map(|p| [-p[0], p[1], p[2]]).collect(),
+        mesh.vertices.iter().copied().map(mirror_point).collect(),
         mesh.faces.iter().map(|&[a, b, c]| [a, c, b]).collect(),
     )
 }

@@ -252,10 +252,9 @@ impl Registration {
     }
 }
 
-/// The mirror image of a point in the plane x = 0.
-pub fn mirror(p: [f64; 3]) -> [f64; 3] {
-    [-p[0], p[1], p[2]]
-}
+/// The mirror image of a point in the plane x = 0: the reflection every mirrored mesh and
+/// member takes.
+pub use crate::mesh::laterality::mirror_point as mirror;
 
 /// One global affine normalisation of a dataset, `x' = (x − centre) / scale`, kept with the
 /// model and undone on every output so that outputs are in mm.

@@ -116,6 +116,18 @@ pub fn choose_sides(
     let mut mirrored: Vec<bool> = (0..n)
         .map(|i| fixed[i].unwrap_or_else(|| to_reference(i, true) < to_reference(i, false)))
         .collect();
+    sweep(&distance, &fixed, &mut mirrored);
+    Ok(SideChoice {
+        mirrored,
+        laterality,
+    })
+}
+
+/// The consensus sweeps: each mesh not `fixed` in turn takes the side whose summed distance
+/// to the others, as currently taken, is smaller, until a sweep changes nothing (at most
+/// [`MAX_SWEEPS`]). `distance[i][j][2·a + b]` as in [`choose_sides`].
+fn sweep(distance: &[Vec<[f64; 4]>], fixed: &[Option<bool>], mirrored: &mut [bool]) {
+    let n = mirrored.len();
     for _ in 0..MAX_SWEEPS {
         let mut changed = false;
         for i in (0..n).filter(|i| fixed[*i].is_none()) {
@@ -133,10 +145,6 @@ pub fn choose_sides(
             break;
         }
     }
-    Ok(SideChoice {
-        mirrored,
-        laterality,
-    })
 }
 
 /// Whether a new mesh takes its mirror image: when the user `given` its side and the model's

@@ -3,6 +3,7 @@
 
 use std::time::Duration;
 
+use cohortforge::mesh::laterality::mirror_image;
 use cohortforge::mesh::phantom::{self, Family};
 use cohortforge::mesh::simplify::simplify;
 use cohortforge::mesh::validate::{IngestOptions, ingest};
@@ -252,12 +253,9 @@ async fn with_mirror_the_given_sides_decide_which_meshes_are_mirrored() {
         .into_iter()
         .enumerate()
         .map(|(k, p)| {
-            let mut small = simplify(&p.mesh, PHANTOM_VERTICES).unwrap().mesh;
+            let small = simplify(&p.mesh, PHANTOM_VERTICES).unwrap().mesh;
             let right = k % 2 == 1;
-            if right {
-                small.vertices.iter_mut().for_each(|v| v[0] = -v[0]);
-                small.faces.iter_mut().for_each(|f| f.swap(1, 2));
-            }
+            let small = if right { mirror_image(&small) } else { small };
             (
                 format!("{}.stl", p.name),
                 io::write(&small, Format::Stl),

@@ -3,6 +3,7 @@
 use super::*;
 use crate::geometry::pca::Sampling;
 use crate::geometry::transform::RigidTransform;
+use crate::mesh::laterality::mirror_image;
 use crate::mesh::measures::{area_cm2, volume_ml};
 use crate::mesh::phantom::{self, Family};
 use crate::models::asmg::CalibrationKind;
@@ -324,15 +325,6 @@ fn biomarker_calibration_gives_draws_the_training_volume_and_area() {
             assert!((midpoint - centre).abs() < 1e-5, "{midpoint} vs {centre}");
         }
     }
-}
-
-/// A mesh's mirror image (x → −x, each triangle's winding reversed so that the surface
-/// still faces outwards).
-fn mirror_image(mesh: &Mesh) -> Mesh {
-    Mesh::new(
-        mesh.vertices.iter().map(|p| [-p[0], p[1], p[2]]).collect(),
-        mesh.faces.iter().map(|&[a, b, c]| [a, c, b]).collect(),
-    )
 }
 
 /// An elongated blob (mm) with three bumps of different heights towards +x, +y and +z: no
