@@ -22,6 +22,9 @@
 //! from its own random training shape and the remaining modes together from one. Last, for
 //! each stage, how far the two ends of the long axis lie
 //! from the centroid and how far each end's farthest vertex stands out of the next 20.
+//! `DUMP=PREFIX` writes the six biomarkers of the training meshes, the reproduced shapes and
+//! the draws, one shape a line, to `PREFIX-training.csv`, `PREFIX-reproduced.csv` and
+//! `PREFIX-draws.csv`.
 
 use cohortforge::cli::mesh_dir::read_mesh_dir;
 use cohortforge::eval::biomarkers::{Biomarkers, ExtentAxes};
@@ -136,6 +139,20 @@ fn main() {
     reference.print("training meshes", &meshes, None);
     reference.print("reproduced", &reproduced, Some(&mean_axis));
     reference.print("draws", &drawn, Some(&mean_axis));
+    // DUMP=PREFIX: the six biomarkers of each stage's shapes as PREFIX-{stage}.csv.
+    if let Ok(prefix) = std::env::var("DUMP") {
+        for (stage, shapes) in [
+            ("training", &meshes),
+            ("reproduced", &reproduced),
+            ("draws", &drawn),
+        ] {
+            let text: String = shapes
+                .iter()
+                .map(|m| row(m).map(|x| x.to_string()).join(",") + "\n")
+                .collect();
+            std::fs::write(format!("{prefix}-{stage}.csv"), text).expect("DUMP is writable");
+        }
+    }
     // Draws no farther from the training mean, in biomarker space, than the farthest mesh.
     let farthest = meshes
         .iter()

@@ -11,6 +11,7 @@ pub mod kdtree;
 pub mod pca;
 pub mod points;
 pub mod procrustes;
+pub mod surface_relax;
 pub mod transform;
 pub mod triangle;
 

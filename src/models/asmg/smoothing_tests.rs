@@ -47,6 +47,7 @@ fn params(gamma: f64, target: Smoothing, method: SmoothingMethod) -> SmoothingPa
         gamma,
         target,
         method,
+        relax_steps: 0,
     }
 }
 
