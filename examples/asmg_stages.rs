@@ -316,7 +316,6 @@ fn main() {
         .map(|(e, m)| ShapeInput {
             embeddings: e,
             positions: &m.vertices,
-            surface: None,
         })
         .collect();
     let started = Instant::now();

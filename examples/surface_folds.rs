@@ -7,7 +7,7 @@
 //! MESHES, or to 40 LV phantoms, with `PARAMS` (JSON, as a fit request's `params`):
 //!
 //!     cargo run --release --example surface_folds -- asmg ../shared/data/kits19/kidney-meshes
-//!     PARAMS='{"mirror": true, "surface_relaxation": 30}' cargo run --release \
+//!     PARAMS='{"mirror": true, "features": "spatial"}' cargo run --release \
 //!         --example surface_folds -- asmg ../shared/data/kits19/kidney-meshes
 
 use cohortforge::cli::mesh_dir::read_mesh_dir;

@@ -171,12 +171,6 @@ impl TriangleBvh {
 
     /// The closest point of the surface to `p` (mm).
     pub fn closest(&self, p: [f64; 3]) -> SurfacePoint {
-        self.closest_where(p, |_| true)
-    }
-
-    /// The closest point to `p` (mm) on the triangles `keep` accepts (by index); at infinite
-    /// distance when it accepts none.
-    pub fn closest_where(&self, p: [f64; 3], keep: impl Fn(usize) -> bool) -> SurfacePoint {
         let mut best = SurfacePoint {
             face: 0,
             point: self.corners[0][0],
@@ -191,9 +185,6 @@ impl TriangleBvh {
             let node = self.nodes[at];
             if node.count > 0 {
                 for &t in &self.order[node.first..node.first + node.count] {
-                    if !keep(t) {
-                        continue;
-                    }
                     let [a, b, c] = self.corners[t];
                     let q = closest_point_on_triangle(p, a, b, c);
                     let d2 = dist2(p, q);

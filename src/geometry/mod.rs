@@ -11,7 +11,6 @@ pub mod kdtree;
 pub mod pca;
 pub mod points;
 pub mod procrustes;
-pub mod surface_relax;
 pub mod transform;
 pub mod triangle;
 

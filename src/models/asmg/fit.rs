@@ -12,7 +12,6 @@ use super::model::{AsmgModel, embed_mesh, embeddings_of, nn_error};
 use super::monitor::StageMonitor;
 use super::params::{AsmgParams, AtlasChoice};
 use super::registration::{align_sides, side_candidates};
-use crate::geometry::surface_relax::RelaxSurface;
 use crate::mesh::{Laterality, Mesh};
 use crate::models::alignment::{median_resolution_index, simplified};
 use crate::models::progress::{Progress, Stages};
@@ -46,8 +45,6 @@ pub(crate) struct Aligned {
     pub(crate) mirrored: Vec<bool>,
     /// The side of the reference, which every shape takes, when the user gave sides.
     pub(crate) laterality: Option<Laterality>,
-    /// The surface of each simplified mesh, for relaxing its normalised shape on it.
-    pub(crate) surfaces: Vec<RelaxSurface>,
 }
 
 impl Aligned {
@@ -80,11 +77,9 @@ impl Aligned {
         embeddings
             .iter()
             .zip(&self.meshes)
-            .zip(&self.surfaces)
-            .map(|((e, m), surface)| ShapeInput {
+            .map(|(e, m)| ShapeInput {
                 embeddings: e,
                 positions: &m.vertices,
-                surface: Some(surface),
             })
             .collect()
     }
@@ -127,17 +122,12 @@ pub(crate) fn align_training(
         meshes.push(chosen.mesh);
         vertices.push(chosen.vertices);
     }
-    let surfaces = meshes
-        .iter()
-        .map(RelaxSurface::new)
-        .collect::<Result<Vec<_>, _>>()?;
     Ok(Aligned {
         reference,
         meshes,
         vertices,
         mirrored,
         laterality: choice.laterality,
-        surfaces,
     })
 }
 

@@ -183,42 +183,6 @@ impl Progress for CancelInGraphStage {
 }
 
 #[test]
-fn relaxed_normalised_shapes_lie_on_their_meshes_and_the_model_keeps_the_setting() {
-    let meshes = phantoms(7);
-    let (training, holdout) = meshes.split_at(6);
-    let params = AsmgParams {
-        surface_relaxation: 10,
-        choose_beta: false,
-        ..quick()
-    };
-    let outcome = fit(training, &[], &params, None, 2, &mut Silent).unwrap();
-    let model: &AsmgModel = outcome.model.downcast().expect("an asmg model");
-    assert_eq!(model.surface_relaxation, 10);
-    // A new mesh's normalised shape: every vertex on the (simplified, aligned) mesh.
-    let (aligned, _) = crate::models::asmg::registration::align(
-        &model.reference,
-        &holdout[0],
-        None,
-        &model.alignment,
-        params.max_vertices,
-        &[&model.atlas.vertices],
-    )
-    .unwrap();
-    let normalised = model.normalise_aligned(&aligned).unwrap();
-    let surface =
-        crate::geometry::bvh::TriangleBvh::new(&aligned.vertices, &aligned.faces).unwrap();
-    let farthest = normalised
-        .iter()
-        .map(|p| surface.closest(*p).distance)
-        .fold(0.0, f64::max);
-    assert!(farthest < 1e-6, "a vertex {farthest} mm off the mesh");
-    let back = StoredModel::from_bytes(&outcome.model.to_bytes().unwrap()).unwrap();
-    let back: &AsmgModel = back.downcast().expect("the stored model is asmg");
-    assert_eq!(back.surface_relaxation, 10);
-    assert_eq!(back.normalise_aligned(&aligned).unwrap(), normalised);
-}
-
-#[test]
 fn cancellation_stops_training_and_bad_input_is_refused() {
     let meshes = phantoms(4);
     let mut cancel = CancelInGraphStage(0);

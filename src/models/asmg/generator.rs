@@ -112,13 +112,7 @@ pub(crate) fn train_generator(
     let latent_prior = generator
         .weighted_aggregate_prior(&shapes, data.weights)
         .map_err(nn_error)?;
-    let networks = AsmgModel::derive(
-        data.graph.clone(),
-        generator,
-        &atlas,
-        params,
-        params.smoothing(),
-    )?;
+    let networks = AsmgModel::derive(data.graph.clone(), generator, &atlas, params)?;
     let mut model = AsmgModel::new(
         atlas,
         data.reference.clone(),
@@ -130,7 +124,6 @@ pub(crate) fn train_generator(
     model.latent_prior = Some(latent_prior);
     model.procrustes_mean = procrustes_mean;
     model.nonrigid = params.nonrigid_refinement();
-    model.surface_relaxation = params.surface_relaxation;
     if params.calibrate_spread {
         model.calibrate_spread(&shapes, data.weights, data.measured, seed)?;
     }

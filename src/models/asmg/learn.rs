@@ -12,9 +12,7 @@ use super::attention::{Temperature, correspond};
 use super::embeddings::Embeddings;
 use super::laplacian::{distance, mean_distance};
 use super::smoothing::{Smoother, SmoothingParams};
-use crate::geometry::surface_relax::RelaxSurface;
 use crate::mesh::Mesh;
-use crate::mesh::measures::vertex_normals;
 use crate::models::ModelError;
 
 /// Default tolerance on the mean atlas movement of a step, mm: a fortieth of the phantoms'
@@ -58,9 +56,6 @@ pub struct ShapeInput<'a> {
     pub embeddings: &'a Embeddings,
     /// Its vertex positions `X_k`, `[N_k, 3]`, mm.
     pub positions: &'a [[f64; 3]],
-    /// Its surface, on which the normalised shape is relaxed (when the smoothing asks for
-    /// it).
-    pub surface: Option<&'a RelaxSurface>,
 }
 
 /// What one step of the loop did.
@@ -178,7 +173,6 @@ pub fn normalise_shapes(
     }
     let mut out = Vec::with_capacity(shapes.len());
     let mut weight_sum = 0.0;
-    let atlas_normals = vertex_normals(atlas);
     for shape in shapes {
         let c = correspond(
             atlas_embeddings,
@@ -187,8 +181,7 @@ pub fn normalise_shapes(
             temperature,
         )?;
         weight_sum += c.matches.iter().map(|m| m.weight).sum::<f64>();
-        let smoothed = smoother.smooth(&c.normalised, &atlas.vertices)?;
-        out.push(smoother.relax(smoothed, &atlas.vertices, &atlas_normals, shape.surface)?);
+        out.push(smoother.smooth(&c.normalised, &atlas.vertices)?);
     }
     let count = (shapes.len() * atlas.vertex_count()).max(1) as f64;
     Ok(NormalisedShapes {

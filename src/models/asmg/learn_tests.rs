@@ -87,7 +87,6 @@ fn run(
         .map(|(e, p)| ShapeInput {
             embeddings: e,
             positions: p,
-            surface: None,
         })
         .collect();
     learn_atlas(
@@ -161,7 +160,6 @@ fn a_shape_equal_to_the_atlas_converges_at_once() {
     let input = [ShapeInput {
         embeddings: &embeddings,
         positions: &mesh.vertices,
-        surface: None,
     }];
     let params = AtlasLoopParams {
         temperature: Temperature::Fixed(2000.0),
@@ -196,7 +194,6 @@ fn progress_can_stop_the_loop_and_inputs_are_checked() {
     let input = [ShapeInput {
         embeddings: &embeddings,
         positions: &shapes[0],
-        surface: None,
     }];
     let params = loop_params(10, 0.0);
     let mut seen = 0;
@@ -248,7 +245,6 @@ fn report_loop_settings() {
             gamma: 50.0,
             target: Smoothing::Positions,
             method: SmoothingMethod::Exact,
-            relax_steps: 0,
         },
         atlas_update: AtlasUpdateParams {
             gamma_mu: None,

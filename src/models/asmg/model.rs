@@ -21,10 +21,9 @@ use super::learn::{ShapeInput, normalise_shapes};
 use super::nonrigid::refine_normalised;
 use super::params::AsmgParams;
 use super::registration::align;
-use super::smoothing::{Smoother, SmoothingParams};
+use super::smoothing::Smoother;
 use crate::geometry::cpd::NonRigidParams;
 use crate::geometry::pca::Sampling;
-use crate::geometry::surface_relax::RelaxSurface;
 use crate::mesh::{Laterality, Mesh};
 use crate::models::alignment::AlignmentParams;
 use crate::models::stored::{FittedModel, encode_named};
@@ -139,10 +138,6 @@ pub struct AsmgModel {
     /// in models stored before it: shapes as the attention gives them).
     #[serde(default)]
     pub nonrigid: Option<NonRigidParams>,
-    /// Relaxation steps of every normalised shape on its mesh (`surface_relaxation` of the
-    /// fit; 0 in models stored before it, which normalise new meshes without).
-    #[serde(default)]
-    pub surface_relaxation: usize,
     /// The networks once built (boxed: they are large and most copies of a model never
     /// build them).
     #[serde(skip)]
@@ -215,7 +210,6 @@ impl AsmgModel {
             biomarker_calibration: None,
             procrustes_mean: None,
             nonrigid: None,
-            surface_relaxation: 0,
             networks: OnceLock::new(),
         };
         if let Some(n) = networks {
@@ -233,13 +227,7 @@ impl AsmgModel {
             .map_err(nn_error)?;
         let generator = TrainedBetaVae::from_bytes(&self.sizes.vae(), &self.generator_weights)
             .map_err(nn_error)?;
-        let built = Self::derive(
-            graph,
-            generator,
-            &self.atlas,
-            &self.params,
-            self.smoothing(),
-        )?;
+        let built = Self::derive(graph, generator, &self.atlas, &self.params)?;
         // Another thread may have won the race; either value is the same.
         let _ = self.networks.set(Box::new(built));
         self.networks
@@ -248,25 +236,15 @@ impl AsmgModel {
             .ok_or_else(|| ModelError::Numerical("the networks could not be kept".to_owned()))
     }
 
-    /// How this model smooths (and relaxes) normalised shapes: as its parameters say, with
-    /// the relaxation it was fitted with.
-    pub fn smoothing(&self) -> SmoothingParams {
-        SmoothingParams {
-            relax_steps: self.surface_relaxation,
-            ..self.params.smoothing()
-        }
-    }
-
-    /// The networks with the atlas embeddings and the smoother `smoothing` of `atlas`.
+    /// The networks with the atlas embeddings and the smoother of `atlas`.
     pub fn derive(
         graph: TrainedGraphVae,
         generator: TrainedBetaVae,
         atlas: &Mesh,
         params: &AsmgParams,
-        smoothing: SmoothingParams,
     ) -> Result<Networks, ModelError> {
         let atlas_embeddings = embed_mesh(&graph, atlas, params)?;
-        let smoother = Smoother::new(atlas, smoothing)?;
+        let smoother = Smoother::new(atlas, params.smoothing())?;
         Ok(Networks {
             graph,
             generator,
@@ -280,14 +258,9 @@ impl AsmgModel {
     pub fn normalise_aligned(&self, aligned: &Mesh) -> Result<Vec<[f64; 3]>, ModelError> {
         let nets = self.networks()?;
         let embeddings = embed_mesh(&nets.graph, aligned, &self.params)?;
-        let surface = match self.surface_relaxation {
-            0 => None,
-            _ => Some(RelaxSurface::new(aligned)?),
-        };
         let input = ShapeInput {
             embeddings: &embeddings,
             positions: &aligned.vertices,
-            surface: surface.as_ref(),
         };
         let mut out = normalise_shapes(
             &self.atlas,

@@ -46,10 +46,6 @@ pub const DEFAULT_W_NORM: f64 = 1e-2;
 /// own budget); fewer than RSMP's 100 because the attention absorbs small residual
 /// misalignment, and the pre-alignment took 29% of a 100-phantom fit.
 pub const DEFAULT_CPD_MAX_ITERATIONS: usize = 40;
-/// Default steps of tangential relaxation of the normalised shapes on their meshes.
-pub const DEFAULT_SURFACE_RELAXATION: usize = 0;
-/// Most relaxation steps accepted.
-pub const MAX_SURFACE_RELAXATION: usize = 1000;
 /// Largest epoch count accepted for either network.
 pub const MAX_EPOCHS: usize = 10_000;
 /// Largest latent width accepted.
@@ -203,14 +199,6 @@ pub struct AsmgParams {
     /// takes the side nearer the atlas. The model summary lists the mirrored meshes. Off by
     /// default: it doubles the registrations, and meshes of one side gain nothing from it.
     pub mirror: bool,
-    /// Steps of tangential relaxation of each normalised shape on its mesh after smoothing
-    /// (see [`crate::geometry::surface_relax`]): every vertex ends on the mesh, its sliding
-    /// along the surface evened out with its neighbours'. Off (0) by default: 30 steps on
-    /// the 16 KiTS19 kidneys (seed 1, sides given) cut the held-out errors on the β folds
-    /// from 5.90–6.04 to 4.51–4.64 mm (`asmg`) and from 4.42–4.49 to 3.72–3.76 mm
-    /// (`atlas-r-asmg`), but on 100 LV phantoms raised matching HD from 6.88 to 8.10 mm and
-    /// lowered joint A^μ from 89.6 to 86.7%.
-    pub surface_relaxation: usize,
 }
 
 impl Default for AsmgParams {
@@ -243,7 +231,6 @@ impl Default for AsmgParams {
             procrustes: false,
             nonrigid: false,
             mirror: false,
-            surface_relaxation: DEFAULT_SURFACE_RELAXATION,
         }
     }
 }
@@ -337,12 +324,6 @@ impl AsmgParams {
         within("batch_size_vae", self.batch_size_vae, 1, 1024)?;
         within("max_em_steps", self.max_em_steps, 1, MAX_EM_STEPS)?;
         within("cpd_max_iterations", self.cpd_max_iterations, 1, 10_000)?;
-        within(
-            "surface_relaxation",
-            self.surface_relaxation,
-            0,
-            MAX_SURFACE_RELAXATION,
-        )?;
         positive_finite("lr", self.lr)?;
         non_negative_finite("beta", self.beta)?;
         non_negative_finite("w_kl", self.w_kl)?;
@@ -389,7 +370,6 @@ impl AsmgParams {
             gamma: self.gamma,
             target: self.smoothing.smoothing(),
             method: SmoothingMethod::Exact,
-            relax_steps: self.surface_relaxation,
         }
     }
 

@@ -10,7 +10,6 @@
 //! `h' = X_μ + S(h − X_μ)`, removes the noise of the correspondences but keeps the shape.
 
 use super::laplacian::{LaplacianSolver, check_gamma, checked_adjacency, jacobi};
-use crate::geometry::surface_relax::{RelaxSurface, relax_on_surface};
 use crate::mesh::Mesh;
 use crate::mesh::adjacency::Adjacency;
 use crate::models::ModelError;
@@ -67,9 +66,6 @@ pub struct SmoothingParams {
     pub target: Smoothing,
     /// How the system is solved.
     pub method: SmoothingMethod,
-    /// Steps of tangential relaxation on the mesh after smoothing (0: none; see
-    /// [`crate::geometry::surface_relax`]).
-    pub relax_steps: usize,
 }
 
 impl Default for SmoothingParams {
@@ -78,7 +74,6 @@ impl Default for SmoothingParams {
             gamma: DEFAULT_GAMMA,
             target: Smoothing::Displacement,
             method: SmoothingMethod::Exact,
-            relax_steps: 0,
         }
     }
 }
@@ -192,29 +187,6 @@ impl Smoother {
 }
 
 impl Smoother {
-    /// The smoothed shape `h'` (`[N_μ, 3]`, mm) relaxed on the surface of its mesh, with
-    /// `atlas` the current atlas and `atlas_normals` its unit vertex normals; `h'` itself
-    /// when no relaxation was asked for or the mesh's surface is not known.
-    pub fn relax(
-        &self,
-        smoothed: Vec<[f64; 3]>,
-        atlas: &[[f64; 3]],
-        atlas_normals: &[[f64; 3]],
-        surface: Option<&RelaxSurface>,
-    ) -> Result<Vec<[f64; 3]>, ModelError> {
-        match surface {
-            Some(surface) if self.params.relax_steps > 0 => Ok(relax_on_surface(
-                &smoothed,
-                atlas,
-                atlas_normals,
-                &self.adjacency,
-                surface,
-                self.params.relax_steps,
-            )?),
-            _ => Ok(smoothed),
-        }
-    }
-
     /// The gradient with respect to the unsmoothed shape `h` of a loss whose gradient with
     /// respect to the smoothed shape `h'` is `gradient` (`[N_μ, 3]`). Smoothing is affine in
     /// `h` with the symmetric linear part `A⁻¹`, `A = I + γL`, so this is `A⁻¹·gradient` for

@@ -47,7 +47,6 @@ fn params(gamma: f64, target: Smoothing, method: SmoothingMethod) -> SmoothingPa
         gamma,
         target,
         method,
-        relax_steps: 0,
     }
 }
 
