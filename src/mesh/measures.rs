@@ -2,6 +2,7 @@
 //! face and vertex normals.
 
 use super::Mesh;
+use super::topology::{by_edge, edge_uses};
 
 /// Cubic millimetres per millilitre.
 pub const MM3_PER_ML: f64 = 1000.0;
@@ -105,20 +106,13 @@ pub fn face_normals(mesh: &Mesh) -> Vec<[f64; 3]> {
 /// few (the 20 KiTS19 kidney meshes 0–21 of 30,000–55,000 edges); a correspondence that
 /// slides neighbouring vertices past each other leaves many.
 pub fn folded_edges(mesh: &Mesh) -> usize {
-    let n = face_normals(mesh);
-    let mut edges = std::collections::HashMap::new();
-    for (f, face) in mesh.faces.iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (
-                face[k].min(face[(k + 1) % 3]),
-                face[k].max(face[(k + 1) % 3]),
-            );
-            edges.entry((a, b)).or_insert_with(Vec::new).push(f);
-        }
-    }
-    edges
-        .values()
-        .filter(|fs| fs.len() == 2 && dot(n[fs[0]], n[fs[1]]) < 0.0)
+    let normals = face_normals(mesh);
+    let uses = edge_uses(mesh);
+    by_edge(&uses)
+        .filter(|run| {
+            let [a, b] = run else { return false };
+            dot(normals[a.face as usize], normals[b.face as usize]) < 0.0
+        })
         .count()
 }
 
