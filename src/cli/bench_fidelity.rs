@@ -67,6 +67,18 @@ pub(super) fn spread_table(report: &BenchReport) -> String {
         }),
     ));
     rows.push(row(
+        "folded edges per 1,000 edges (members with a fold, %)",
+        models.iter().map(|m| {
+            m.cohort.report.folding.map_or(MISSING.to_owned(), |f| {
+                format!(
+                    "{:.1} ({:.1}%)",
+                    f.per_mille,
+                    100.0 * f.surfaces_folded as f64 / f.surfaces.max(1) as f64
+                )
+            })
+        }),
+    ));
+    rows.push(row(
         "joint A^μ, %",
         models
             .iter()

@@ -261,7 +261,13 @@ fn fidelity_markdown(f: &crate::models::spread::FidelitySummary) -> String {
     if let Some(sentence) = f.acceptance_sentence() {
         out.push_str(&format!("\n{sentence}.\n"));
     }
-    if let Some(warning) = f.near_copy_sentence() {
+    if let Some(sentence) = f.folding_sentence() {
+        out.push_str(&format!("\n{sentence}.\n"));
+    }
+    for warning in [f.near_copy_sentence(), f.folding_warning()]
+        .into_iter()
+        .flatten()
+    {
         out.push_str(&format!("\n{warning}.\n"));
     }
     if let Some(note) = &f.population_note {

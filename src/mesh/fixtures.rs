@@ -25,6 +25,20 @@ pub(crate) fn cube() -> Mesh {
     Mesh::new(vertices, faces)
 }
 
+/// A unit square of two triangles meeting along the diagonal 0–3 whose corner 2 is pulled
+/// back across it to `(1, 0.5, 0)`: the triangles face opposite ways, one folded edge.
+pub(crate) fn folded_square() -> Mesh {
+    Mesh::new(
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 0.5, 0.0],
+            [1.0, 1.0, 0.0],
+        ],
+        vec![[0, 1, 3], [0, 3, 2]],
+    )
+}
+
 /// Regular tetrahedron with corners at `5 · (±1, ±1, ±1)` (even sign count) plus `offset`.
 pub(crate) fn tetrahedron(offset: f64) -> Mesh {
     let p: [[f64; 3]; 4] = [

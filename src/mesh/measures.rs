@@ -146,7 +146,7 @@ pub fn vertex_normals(mesh: &Mesh) -> Vec<[f64; 3]> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::fixtures::cube;
+    use crate::mesh::fixtures::{cube, folded_square};
 
     fn close(a: [f64; 3], b: [f64; 3], tol: f64) -> bool {
         (0..3).all(|k| (a[k] - b[k]).abs() < tol)
@@ -169,18 +169,10 @@ mod tests {
         assert_eq!(folded_edges(&cube()), 0);
         // A square of two triangles, flat: no fold; its corner 2 pulled back across the
         // diagonal 0–3 turns triangle 1 over: one fold.
-        let mut square = Mesh::new(
-            vec![
-                [0.0, 0.0, 0.0],
-                [1.0, 0.0, 0.0],
-                [0.0, 1.0, 0.0],
-                [1.0, 1.0, 0.0],
-            ],
-            vec![[0, 1, 3], [0, 3, 2]],
-        );
-        assert_eq!(folded_edges(&square), 0);
-        square.vertices[2] = [1.0, 0.5, 0.0];
+        let mut square = folded_square();
         assert_eq!(folded_edges(&square), 1);
+        square.vertices[2] = [0.0, 1.0, 0.0];
+        assert_eq!(folded_edges(&square), 0);
     }
 
     #[test]

@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use super::clusters::{ClusterReport, cluster_reports};
 use super::conditional::Conditional;
+use super::folding::Folding;
 use super::progress::{Progress, ProgressUpdate, Silent};
 pub use super::targets_report::TargetsReport;
 use super::{Draw, ModelError, ReferencePopulation, ShapeModel};
@@ -139,6 +140,10 @@ pub struct CohortReport {
     /// The targets of a conditional cohort and how well its members meet them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub targets: Option<TargetsReport>,
+    /// How often the members' surfaces fold over (absent in reports stored before it was
+    /// measured).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub folding: Option<Folding>,
 }
 
 /// Privacy part of a cohort report.
@@ -469,6 +474,7 @@ fn report(
         population_note: None,
         implausible_replaced: 0,
         targets: None,
+        folding: Folding::of(members.iter().map(|m| &m.mesh)),
     })
 }
 

@@ -114,7 +114,13 @@ pub fn finish<M: FittedModel + 'static>(
         compared.as_ref().unwrap_or(&parts.normalised),
         DEFAULT_PERCENTILE,
     )?;
-    let fidelity = fidelity_summary(&parts.model, &reference, &training, input.seed)?;
+    let fidelity = fidelity_summary(
+        &parts.model,
+        &reference,
+        &training,
+        input.training,
+        input.seed,
+    )?;
     stages.close();
     let atlases: Vec<AtlasInfo> = parts
         .model

@@ -18,6 +18,7 @@ pub mod conditional;
 mod error;
 pub mod evaluation;
 pub mod fitting;
+pub mod folding;
 pub mod latent_effects;
 pub mod matlas_r_asmg;
 pub mod progress;

@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use super::cohort::{CohortSpec, Criterion, Member, TrainingIndex, columns, sample_cohort};
+use super::folding::{Folding, folding_warning};
 use super::{ModelError, ReferencePopulation, ShapeModel, TrainingShapes};
 use crate::eval::fidelity::Spread;
 use crate::eval::gaussian_reference::{
@@ -14,6 +15,7 @@ use crate::eval::gaussian_reference::{
 };
 use crate::eval::privacy::DEFAULT_PERCENTILE;
 use crate::geometry::pca::Sampling;
+use crate::mesh::Mesh;
 
 /// Members of the cohort drawn to judge a fit's spread.
 pub const FIDELITY_MEMBERS: usize = 1000;
@@ -57,6 +59,13 @@ pub struct FidelitySummary {
     /// Said when the training population is too small for its estimates.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub population_note: Option<String>,
+    /// How often the members' surfaces fold over (absent in summaries stored before it was
+    /// measured).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub folding: Option<Folding>,
+    /// How often the training meshes' surfaces fold over, as uploaded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub training_folding: Option<Folding>,
 }
 
 /// 95th percentiles of the Mahalanobis distance of the six biomarkers from the training
@@ -106,6 +115,23 @@ impl FidelitySummary {
         })
     }
 
+    /// How often the members fold over beside the training meshes, in words (absent in
+    /// summaries stored before it was measured).
+    pub fn folding_sentence(&self) -> Option<String> {
+        let (members, training) = (self.folding?, self.training_folding?);
+        Some(format!(
+            "Members: {}; training meshes: {}",
+            members.describe(),
+            training.describe()
+        ))
+    }
+
+    /// A warning when the members fold over far more than the training meshes (see
+    /// [`folding_warning`]).
+    pub fn folding_warning(&self) -> Option<String> {
+        folding_warning(&self.folding?, &self.training_folding?)
+    }
+
     /// The members' joint distance from the training mean beside the training meshes', in
     /// words (absent when not computed).
     pub fn distance_sentence(&self) -> Option<String> {
@@ -120,11 +146,12 @@ impl FidelitySummary {
 }
 
 /// Draws [`FIDELITY_MEMBERS`] members (seeded from `seed`) and compares them with the
-/// training population.
+/// training population (`training_meshes`: the meshes as uploaded).
 pub fn fidelity_summary<M: ShapeModel + Sync + ?Sized>(
     model: &M,
     reference: &ReferencePopulation,
     training: &TrainingShapes,
+    training_meshes: &[Mesh],
     seed: u64,
 ) -> Result<FidelitySummary, ModelError> {
     let normalised = training.normalised_f64();
@@ -161,6 +188,8 @@ pub fn fidelity_summary<M: ShapeModel + Sync + ?Sized>(
         implausible_replaced: report.implausible_replaced,
         biomarker_distance,
         population_note: report.population_note,
+        folding: report.folding,
+        training_folding: Folding::of(training_meshes),
     })
 }
 
@@ -185,7 +214,6 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
 
     use super::*;
-    use crate::mesh::Mesh;
     use crate::mesh::phantom::{self, Family};
     use crate::models::{Draw, Reconstruction};
 
@@ -233,7 +261,14 @@ mod tests {
         let shapes: Vec<Vec<[f64; 3]>> = meshes.iter().map(|m| m.vertices.clone()).collect();
         let training = TrainingShapes::new(&shapes, std::slice::from_ref(&shapes), 0.05).unwrap();
         let reference = ReferencePopulation::from_meshes(meshes).unwrap();
-        fidelity_summary(&Cycler(meshes.to_vec(), scale), &reference, &training, 1).unwrap()
+        fidelity_summary(
+            &Cycler(meshes.to_vec(), scale),
+            &reference,
+            &training,
+            meshes,
+            1,
+        )
+        .unwrap()
     }
 
     #[test]
@@ -255,6 +290,13 @@ mod tests {
             sentence.contains(&format!("{:.1}", d.members_p95)),
             "{sentence}"
         );
+        // Members that are the patients fold over exactly as often as the patients (40
+        // members for each), so no folding warning.
+        let (members, patients) = (f.folding.unwrap(), f.training_folding.unwrap());
+        assert!((members.per_mille - patients.per_mille).abs() < 1e-9);
+        assert_eq!((members.surfaces, patients.surfaces), (1000, 25));
+        assert!(f.folding_warning().is_none());
+        assert!(f.folding_sentence().unwrap().starts_with("Members: "));
         // Members that are the patients: every one a near copy, and the summary says so.
         assert_eq!(f.near_copies, f.members);
         let warning = f.near_copy_sentence().expect("a warning");

@@ -96,6 +96,14 @@ pub fn cohort_page(c: &CohortPage<'_>) -> String {
         escape(&p.distance),
         p.near_copies_replaced
     );
+    if let Some(f) = &c.report.folding {
+        let _ = write!(
+            body,
+            "<h2>Folded surfaces</h2><p>{}: edges whose two triangles face opposite ways, \
+             which a volume mesher for a simulation refuses.</p>",
+            escape(&f.describe())
+        );
+    }
     body.push_str(
         "<h2>Biomarkers: training population against the cohort</h2><div class=\"plots\">",
     );

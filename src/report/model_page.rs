@@ -92,13 +92,20 @@ fn fidelity_section(s: &ModelSummary) -> String {
         &sentence,
         &rows,
     );
-    for sentence in [f.acceptance_sentence(), f.distance_sentence()]
-        .into_iter()
-        .flatten()
+    for sentence in [
+        f.acceptance_sentence(),
+        f.distance_sentence(),
+        f.folding_sentence(),
+    ]
+    .into_iter()
+    .flatten()
     {
         let _ = write!(out, "<p>{}.</p>", escape(&sentence));
     }
-    if let Some(warning) = f.near_copy_sentence() {
+    for warning in [f.near_copy_sentence(), f.folding_warning()]
+        .into_iter()
+        .flatten()
+    {
         let _ = write!(out, "<p class=\"note\">{}.</p>", escape(&warning));
     }
     if let Some(note) = &f.population_note {
