@@ -61,7 +61,7 @@ pub fn folding_warning(members: &Folding, training: &Folding) -> Option<String> 
                  {:.1}: triangles turned back onto their neighbours, which a volume mesher \
                  for a simulation refuses. Repair the members before meshing them; for a \
                  solid organ such as a kidney, an ASMG-family fit started from an icosphere \
-                 (\"atlas\": \"icosphere\") folds about seven times less often (not for hollow \
+                 (\"atlas\": \"icosphere\") folds about ten times less often (not for hollow \
                  organs such as a ventricle, whose walls it cannot follow)",
                 members.per_mille, training.per_mille
             )
